@@ -1,0 +1,51 @@
+"""`pac-host`: the command-line entry point.
+
+Every command module registers itself on :data:`main`; :func:`run` turns the toolkit's typed
+errors into one line on stderr and the error's exit code (2 for usage and input errors).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from pac_host import __version__
+from pac_host.errors import PacError
+
+
+class _Group(click.Group):
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except PacError as e:
+            click.echo(f"pac-host: error: {e}", err=True)
+            ctx.exit(e.exit_code)
+        except KeyboardInterrupt:
+            click.echo("pac-host: interrupted (work already written is kept)", err=True)
+            ctx.exit(130)
+        except BrokenPipeError:
+            sys.stderr.close()
+            ctx.exit(1)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="pac-host")
+def main() -> None:
+    """Co-evolve the ServoBot's gait model and its mine-sweeping turn cycle.
+
+    A cyclic GA learns a looped sequence of gait cycles on a model of the robot; a model GA with
+    partial recombination corrects the model from periodic tests on the robot (punctuated
+    anytime learning). Start with `pac-host table show`, `pac-host simulate --help` and
+    `pac-host experiment --help`.
+    """
+
+
+def _register() -> None:
+    from pac_host.cli import experiment, simulate, table
+
+    for mod in (table, simulate, experiment):
+        mod.register(main)
+
+
+_register()

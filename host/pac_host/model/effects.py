@@ -1,0 +1,213 @@
+"""Unmodelled effects (DESIGN.md section 3): named, parameterized transforms of a gait table.
+
+This is the one definition of each effect. The emulator's simulated world moves the robot with
+it, the coverage simulator plays "actual robots" with it, and the gap diagnosis fits it.
+
+Effects compose in the canonical order of the design table, whatever order a file lists them:
+table-level effects (``turn_shift`` .. ``lateral_slip``) rewrite the 32 rows, then sequence
+effects (``transition``, ``battery_sag``) act on the executed steps, and ``floor_slope`` adds a
+world-frame drift after each body-frame move.
+
+>>> import numpy as np
+>>> from pac_host.model.table import measured_table
+>>> body, world = step_moves(measured_table().rows, np.array([12, 12]), [Effect("yaw_bias", {"delta": 1.5})])
+>>> body[:, 2].tolist()
+[1.5, 1.5]
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pac_host.errors import InputError
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    name: str
+    lo: float
+    hi: float
+    integer: bool = False
+    neutral: float = 0.0
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    name: str
+    params: tuple[ParamSpec, ...]
+    stage: str  # "table", "sequence" or "world"
+    doc: str
+
+
+EFFECT_SPECS: dict[str, EffectSpec] = {
+    s.name: s
+    for s in (
+        EffectSpec("turn_shift", (ParamSpec("k", -15, 15, True, 0),), "table",
+                   "every turn k strengths weaker (k > 0) or harder (k < 0)"),
+        EffectSpec("turn_scale", (ParamSpec("c", 0.0, 3.0, neutral=1.0),), "table",
+                   "lateral move and heading change scaled by c"),
+        EffectSpec("stride_scale", (ParamSpec("a", 0.0, 3.0, neutral=1.0),), "table",
+                   "forward move scaled by a"),
+        EffectSpec("yaw_bias", (ParamSpec("delta", -30.0, 30.0),), "table",
+                   "constant heading drift of delta degrees per gait cycle"),
+        EffectSpec("lateral_slip", (ParamSpec("gamma", -2.0, 2.0),), "table",
+                   "lateral slip of gamma cm per degree turned"),
+        EffectSpec("transition", (ParamSpec("alpha", 0.0, 1.0),), "sequence",
+                   "the first cycle after a change of gait is a blend with the previous gait"),
+        EffectSpec("battery_sag", (ParamSpec("beta", 0.0, 0.1),), "sequence",
+                   "every move shrinks by beta per gait cycle since power-on"),
+        EffectSpec("floor_slope", (ParamSpec("s", -20.0, 20.0), ParamSpec("theta", -360.0, 360.0)),
+                   "world", "a world-frame drift of s cm per gait cycle towards compass theta"),
+    )
+}
+ORDER = tuple(EFFECT_SPECS)
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect with its parameter values, e.g. ``Effect("yaw_bias", {"delta": 1.5})``."""
+
+    name: str
+    params: dict
+
+    def __post_init__(self) -> None:
+        spec = EFFECT_SPECS.get(self.name)
+        if spec is None:
+            raise InputError(
+                f"unknown effect {self.name!r} (known: {', '.join(EFFECT_SPECS)})"
+            )
+        want = {p.name for p in spec.params}
+        got = set(self.params)
+        if got != want:
+            raise InputError(
+                f"effect {self.name}: parameters must be {sorted(want)}, got {sorted(got)}"
+            )
+        clean = {}
+        for p in spec.params:
+            v = self.params[p.name]
+            if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
+                raise InputError(f"effect {self.name}: {p.name} must be a number, got {v!r}")
+            v = float(v)
+            if not math.isfinite(v) or not p.lo <= v <= p.hi:
+                raise InputError(
+                    f"effect {self.name}: {p.name}={v} outside [{p.lo:g}, {p.hi:g}]"
+                )
+            if p.integer:
+                if v != int(v):
+                    raise InputError(f"effect {self.name}: {p.name} must be an integer")
+                v = int(v)
+            clean[p.name] = v
+        object.__setattr__(self, "params", clean)
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "params": dict(self.params)}
+
+    def __str__(self) -> str:
+        return self.name + ":" + ",".join(f"{k}={v:g}" for k, v in self.params.items())
+
+
+def effect_from_json(doc: object, where: str = "effect") -> Effect:
+    if not isinstance(doc, dict) or not isinstance(doc.get("name"), str):
+        raise InputError(f"{where}: expected {{'name': ..., 'params': {{...}}}}")
+    params = doc.get("params", {})
+    if not isinstance(params, dict):
+        raise InputError(f"{where}: 'params' must be an object")
+    try:
+        return Effect(doc["name"], params)
+    except InputError as e:
+        raise InputError(f"{where}: {e}") from None
+
+
+def parse_effect(text: str) -> Effect:
+    """Parse the command-line form ``name:param=value,...`` (``transition:alpha=0.4``)."""
+    name, _, rest = text.partition(":")
+    params: dict[str, float] = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, eq, val = item.partition("=")
+        if not eq:
+            raise InputError(f"effect {text!r}: expected name:param=value,...")
+        try:
+            params[key.strip()] = float(val)
+        except ValueError:
+            raise InputError(f"effect {text!r}: {key.strip()}={val!r} is not a number") from None
+    return Effect(name.strip(), params)
+
+
+def _canonical(effects: Iterable[Effect]) -> list[Effect]:
+    return sorted(effects, key=lambda e: ORDER.index(e.name))
+
+
+def effective_rows(rows: np.ndarray, effects: Iterable[Effect]) -> np.ndarray:
+    """Apply the table-level effects to rows of shape (..., 32, 3); returns a new array."""
+    out = np.array(rows, dtype=np.float64, copy=True)
+    for e in _canonical(effects):
+        p = e.params
+        if e.name == "turn_shift":
+            ids = np.arange(32)
+            src = (ids & 16) | np.clip((ids & 15) + p["k"], 0, 15)
+            out = out[..., src, :]
+        elif e.name == "turn_scale":
+            out[..., 1:] *= p["c"]
+        elif e.name == "stride_scale":
+            out[..., 0] *= p["a"]
+        elif e.name == "yaw_bias":
+            out[..., 2] += p["delta"]
+        elif e.name == "lateral_slip":
+            out[..., 1] += p["gamma"] * out[..., 2]
+    return out
+
+
+def gather_rows(rows: np.ndarray, gait_ids: np.ndarray) -> np.ndarray:
+    """Rows of the executed gait cycles: (32, 3) or (K, 32, 3) rows, ids (..., n) or (K, ..., n)."""
+    if rows.ndim == 2:
+        return rows[gait_ids]
+    k = rows.shape[0]
+    base = (np.arange(k) * 32).reshape((k,) + (1,) * (gait_ids.ndim - 1))
+    return rows.reshape(-1, 3)[gait_ids + base]
+
+
+def step_moves(
+    rows: np.ndarray,
+    gait_ids: np.ndarray,
+    effects: Sequence[Effect] = (),
+    n0: int | np.ndarray = 0,
+    prev_gait: int | None = None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Body-frame moves (..., n, 3) and world-frame drifts (..., n, 2) or None of a run.
+
+    ``n0`` is the number of gait cycles executed since power-on before the run; ``prev_gait``
+    is the gait executed just before ``gait_ids[0]`` in the same run (None at a run's start),
+    which lets the emulator's world advance one gait cycle at a time.
+    """
+    effects = _canonical(effects)
+    gait_ids = np.asarray(gait_ids)
+    body = gather_rows(effective_rows(rows, effects), gait_ids)
+    world = None
+    for e in effects:
+        p = e.params
+        if e.name == "transition" and p["alpha"] > 0:
+            prev = np.empty_like(body)
+            prev[..., 1:, :] = body[..., :-1, :]
+            changed = np.zeros(gait_ids.shape, dtype=bool)
+            changed[..., 1:] = gait_ids[..., 1:] != gait_ids[..., :-1]
+            if prev_gait is not None and gait_ids.shape[-1] > 0:
+                prev[..., 0, :] = gather_rows(
+                    effective_rows(rows, [x for x in effects if EFFECT_SPECS[x.name].stage == "table"]),
+                    np.full(gait_ids.shape[:-1] + (1,), prev_gait),
+                )[..., 0, :]
+                changed[..., 0] = gait_ids[..., 0] != prev_gait
+            a = p["alpha"]
+            body = np.where(changed[..., None], (1 - a) * body + a * prev, body)
+        elif e.name == "battery_sag" and p["beta"] > 0:
+            i = np.arange(gait_ids.shape[-1])
+            factor = np.maximum(0.0, 1.0 - p["beta"] * (np.asarray(n0)[..., None] + i))
+            body = body * factor[..., None]
+        elif e.name == "floor_slope":
+            th = math.radians(p["theta"])
+            drift = np.array([p["s"] * math.sin(th), p["s"] * math.cos(th)])
+            world = np.broadcast_to(drift, body.shape[:-1] + (2,))
+    return body, world
