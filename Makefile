@@ -5,13 +5,14 @@ BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 OUT     ?= out
 
-.PHONY: help venv test demo bench lint clean
+.PHONY: help venv test demo bench lint clean firmware
 
 help:
 	@echo "make demo    run a short paper experiment on the built-in simulated robot"
 	@echo "make test    install into .venv and run the test suite"
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
 	@echo "make lint    ruff"
+	@echo "make firmware  tokenize firmware/servobot.bs2 (Node.js), writing build/servobot.json and .bin"
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -21,7 +22,19 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
-test: $(STAMP)
+# The firmware: Parallax's tokenizer (npm pbasic-tokenizer, pinned by firmware/package-lock.json).
+FW_DEPS := firmware/node_modules/.package-lock.json
+FW_IMAGE := build/servobot.json
+
+$(FW_DEPS): firmware/package.json firmware/package-lock.json
+	cd firmware && npm ci --no-audit --no-fund --loglevel=error
+
+$(FW_IMAGE): firmware/servobot.bs2 firmware/tools/tokenize.js $(FW_DEPS)
+	node firmware/tools/tokenize.js firmware/servobot.bs2 --out build
+
+firmware: $(FW_IMAGE)
+
+test: $(STAMP) firmware
 	$(BIN)/ruff check host protocol simulator tests bench
 	$(BIN)/python -m pytest
 
@@ -35,4 +48,4 @@ lint: $(STAMP)
 	$(BIN)/ruff check host protocol simulator tests bench
 
 clean:
-	rm -rf $(VENV) $(OUT) bench/results
+	rm -rf $(VENV) $(OUT) bench/results build firmware/node_modules
