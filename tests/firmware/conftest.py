@@ -22,6 +22,7 @@ class Tokenized:
     stdout: str
     stderr: str
     image: dict | None
+    path: Path | None
 
 
 def run_tokenizer(source: Path, out: Path) -> Tokenized:
@@ -35,7 +36,7 @@ def run_tokenizer(source: Path, out: Path) -> Tokenized:
     )
     path = out / (source.stem + ".json")
     image = json.loads(path.read_text()) if res.returncode == 0 and path.exists() else None
-    return Tokenized(res.returncode, res.stdout, res.stderr, image)
+    return Tokenized(res.returncode, res.stdout, res.stderr, image, path if image else None)
 
 
 @pytest.fixture(scope="session")
