@@ -216,70 +216,180 @@ class Program:
                                 "<": a < b, ">": a > b}[op]
         raise ValueError(f"not a comparison: {text}")
 
-    # ---- the gait cycle ------------------------------------------------------------------
-    def block(self, start: str = "' <gait-cycle>", end: str = "' </gait-cycle>") -> list[str]:
-        i = next(n for n, ln in enumerate(self.raw) if ln.strip() == start)
-        j = next(n for n, ln in enumerate(self.raw) if ln.strip() == end)
-        return [ln for ln in self.lines[i + 1 : j] if ln and not ln.endswith(":")]
-
+    # ---- execution ------------------------------------------------------------------------
     def gait_cycle(self, gait_id: int, gid_var: str = "gid") -> list[Activation]:
-        """Execute the gait-cycle subroutine for ``gait_id``; one Activation per loop pass."""
-        ram: dict[str, int] = {}
-        self.set(gid_var, gait_id, ram)
-        stmts = self.block()
-        acts: list[Activation] = []
-        loop_stack: list[tuple[int, str, int]] = []  # (body start, variable, end value)
-        pc = 0
-        while pc < len(stmts):
-            s = stmts[pc]
-            m = re.match(r"^FOR\s+(\w+)\s*=\s*(.+?)\s+TO\s+(.+)$", s, re.I)
-            if m:
-                self.set(m.group(1), self.eval(m.group(2), ram), ram)
-                loop_stack.append((pc + 1, m.group(1), self.eval(m.group(3), ram)))
-                acts.append(Activation(statements=1))
-                pc += 1
-                continue
-            if re.match(r"^NEXT\b", s, re.I):
-                acts[-1].statements += 1
-                start, var, stop = loop_stack[-1]
-                v = self.get(var, ram) + 1
-                if v <= stop:
-                    self.set(var, v, ram)
-                    acts.append(Activation())
-                    pc = start
-                else:
-                    loop_stack.pop()
-                    pc += 1
-                continue
-            if re.match(r"^RETURN$", s, re.I):
-                break
-            self._simple(s, ram, acts[-1])
-            pc += 1
-        return acts
+        """Execute the GaitCycle subroutine for ``gait_id``; one Activation per FOR pass."""
+        m = Machine(self)
+        m.set(gid_var, gait_id)
+        m.run("GaitCycle", until_return=True)
+        return m.activations
 
-    def _simple(self, s: str, ram: dict[str, int], act: Activation) -> None:
+
+class Stop(Exception):
+    """The program ended, or the host has nothing more to say."""
+
+
+class Host:
+    """What is on the other end of SERIN/SEROUT. Override :meth:`serin`."""
+
+    def __init__(self) -> None:
+        self.received = bytearray()
+
+    def serout(self, data: bytes) -> None:
+        self.received += data
+
+    def serin(self, timeout_ms: int) -> bytes | None:
+        raise Stop
+
+
+class Machine:
+    """Runs a :class:`Program` statement by statement: RAM, EEPROM (DATA, then WRITEs), a
+    GOSUB stack, FOR loops. Counts executed statements (an IF and each statement its THEN
+    runs count one each) and records each FOR pass as an :class:`Activation`."""
+
+    def __init__(self, prog: Program, host: Host | None = None) -> None:
+        self.prog = prog
+        self.host = host or Host()
+        self.ram: dict[str, int] = {}
+        self.eeprom = bytearray(2048)
+        for addr, v in prog.data.items():
+            self.eeprom[addr] = v
+        self.writes = 0
+        self.statements = 0
+        self.activations: list[Activation] = []
+        self._act_start = 0
+        self.stmts: list[str] = []
+        self.labels: dict[str, int] = {}
+        decl = re.compile(r"^(\w+\s+(CON|VAR|DATA)\b|DATA\b)", re.I)
+        for ln in prog.lines:
+            if not ln or decl.match(ln):
+                continue
+            m = re.match(r"^(\w+):$", ln)
+            if m:
+                self.labels[m.group(1).upper()] = len(self.stmts)
+            else:
+                self.stmts.append(ln)
+        self.stack: list[int] = []
+        self.loops: list[tuple[int, str, int]] = []
+
+    def get(self, name: str) -> int:
+        return self.prog.get(name, self.ram)
+
+    def set(self, name: str, value: int) -> None:
+        self.prog.set(name, value, self.ram)
+
+    def eval(self, text: str) -> int:
+        return self.prog.eval(text, self.ram)
+
+    def run(self, label: str, until_return: bool = False, max_statements: int = 10**7) -> None:
+        """Run from ``label``; with ``until_return``, until that subroutine returns."""
+        self.pc = self.labels[label.upper()]
+        depth = len(self.stack)
+        if until_return:
+            self.stack.append(-1)
+        limit = self.statements + max_statements
+        while self.statements < limit:
+            if self.pc >= len(self.stmts):
+                raise Stop
+            s = self.stmts[self.pc]
+            self.pc += 1
+            self.exec(s)
+            if until_return and self.pc == -1:
+                del self.stack[depth:]
+                return
+        raise RuntimeError("statement budget exhausted")
+
+    def jump(self, label: str) -> None:
+        self.pc = self.labels[label.strip().upper()]
+
+    def exec(self, s: str) -> None:
+        self.statements += 1
         m = re.match(r"^IF\s+(.+?)\s+THEN\s+(.+)$", s, re.I)
         if m:
-            act.statements += 1
-            if self.condition(m.group(1), ram):
-                for part in split_top(m.group(2), ":"):
-                    self._simple(part, ram, act)
+            if self.prog.condition(m.group(1), self.ram):
+                then = m.group(2).strip()
+                if then.upper() in self.labels:
+                    self.jump(then)
+                else:
+                    for part in split_top(then, ":"):
+                        self.statements += 1
+                        self._do(part)
             return
-        act.statements += 1
-        m = re.match(r"^PULSOUT\s+(.+)$", s, re.I)
-        if m:
-            pin, width = split_top(m.group(1), ",")
-            act.pulses.append((self.eval(pin, ram), self.eval(width, ram)))
-            return
-        m = re.match(r"^READ\s+(.+)$", s, re.I)
-        if m:
-            addr, *targets = split_top(m.group(1), ",")
-            a = self.eval(addr, ram)
+        self._do(s)
+
+    def _do(self, s: str) -> None:
+        word = s.split(None, 1)[0].upper()
+        rest = s[len(word):].strip()
+        if word == "FOR":
+            m = re.match(r"^(\w+)\s*=\s*(.+?)\s+TO\s+(.+)$", rest, re.I)
+            self.set(m.group(1), self.eval(m.group(2)))
+            self.loops.append((self.pc, m.group(1), self.eval(m.group(3))))
+            self._act_start = self.statements - 1
+            self.activations.append(Activation())
+        elif word == "NEXT":
+            start, var, stop = self.loops[-1]
+            self.activations[-1].statements = self.statements - self._act_start
+            v = self.get(var) + 1
+            if v <= stop:
+                self.set(var, v)
+                self.pc = start
+                self._act_start = self.statements
+                self.activations.append(Activation())
+            else:
+                self.loops.pop()
+        elif word == "GOTO":
+            self.jump(rest)
+        elif word == "GOSUB":
+            self.stack.append(self.pc)
+            self.jump(rest)
+        elif word == "RETURN":
+            self.pc = self.stack.pop()
+        elif word == "ON":
+            m = re.match(r"^(.+?)\s+GOTO\s+(.+)$", rest, re.I)
+            targets = split_top(m.group(2), ",")
+            i = self.eval(m.group(1))
+            if i < len(targets):
+                self.jump(targets[i])
+        elif word == "PULSOUT":
+            pin, width = split_top(rest, ",")
+            self.activations[-1].pulses.append((self.eval(pin), self.eval(width)))
+        elif word == "READ":
+            addr, *targets = split_top(rest, ",")
+            a = self.eval(addr)
             for k, t in enumerate(targets):
-                self.set(t, self.data.get(a + k, 0), ram)
+                self.set(t, self.eeprom[a + k])
+        elif word == "WRITE":
+            addr, *values = split_top(rest, ",")
+            a = self.eval(addr)
+            for k, v in enumerate(values):
+                self.eeprom[a + k] = self.eval(v) & 0xFF
+                self.writes += 1
+        elif word == "SEROUT":
+            items = rest[rest.index("[") + 1 : rest.rindex("]")]
+            self.host.serout(bytes(self.eval(x) & 0xFF for x in split_top(items, ",")))
+        elif word == "SERIN":
+            self._serin(rest)
+        elif word in ("END", "STOP"):
+            raise Stop
+        else:
+            m = re.match(r"^([\w.]+)\s*=\s*(.+)$", s)
+            if not m:
+                raise ValueError(f"statement outside the subset: {s}")
+            self.set(m.group(1), self.eval(m.group(2)))
+
+    def _serin(self, rest: str) -> None:
+        head, items = rest[: rest.index("[")], rest[rest.index("[") + 1 : rest.rindex("]")]
+        _pin, _baud, timeout, label = (x for x in split_top(head.rstrip().rstrip(","), ","))
+        data = self.host.serin(self.eval(timeout))
+        parts = split_top(items, ",")
+        wait = b""
+        if parts[0].upper().startswith("WAIT("):
+            wait = bytes(self.eval(x) for x in split_top(parts[0][5:-1], ","))
+            parts = parts[1:]
+        pos = data.find(wait) if data is not None else -1
+        if pos < 0 or len(data) - pos - len(wait) < len(parts):
+            self.jump(label)
             return
-        m = re.match(r"^([\w.]+)\s*=\s*(.+)$", s)
-        if m:
-            self.set(m.group(1), self.eval(m.group(2), ram), ram)
-            return
-        raise ValueError(f"statement outside the subset: {s}")
+        body = data[pos + len(wait) :]
+        for k, var in enumerate(parts):
+            self.set(var, body[k])

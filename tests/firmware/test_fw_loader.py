@@ -8,7 +8,6 @@ import pytest
 import serial
 from conftest import SOURCE
 from fw_fake_stamp import FakeStamp
-
 from pac_host.stamp_image import image_from_json
 from pac_host.stamp_loader import (
     NoStampError,
@@ -50,7 +49,8 @@ def test_download_is_byte_exact_with_the_documented_protocol(image):
     assert version == image.firmware_version == fw
     assert report.interpreter == "1.0" and report.packets == len(image.packets)
     assert report.reset_line is False  # a pty has no DTR
-    assert events[0][0] == "reset" and events[-1] == ("done", len(image.packets), len(image.packets))
+    n = len(image.packets)
+    assert events[0][0] == "reset" and events[-1] == ("done", n, n)
     counts = [e[1] for e in events if e[0] == "packet"]
     assert counts == list(range(1, len(image.packets) + 1))
 
