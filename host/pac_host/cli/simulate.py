@@ -14,7 +14,8 @@ from pac_host.coverage import DEFAULT_BUDGET, START_POSE, check_budget, parse_tu
 @table_option()
 @effect_option()
 @click.option("--turn-cycle", "turn_cycle", required=True, metavar="ID:REPS,...",
-              help='Looped genes of gait cycle id (0..31) and repetitions (0..63), e.g. "12:14,3:10".')
+              help='Looped genes of gait cycle id (0..31) and repetitions (0..63), '
+                   'e.g. "12:14,3:10".')
 @click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
               help="Gait cycles to run.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
