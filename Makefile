@@ -4,6 +4,7 @@ VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 OUT     ?= out
+PYDIRS  := $(wildcard host protocol simulator tests bench)
 
 .PHONY: help venv test demo bench lint clean
 
@@ -22,7 +23,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 test: $(STAMP)
-	$(BIN)/ruff check host protocol simulator tests bench
+	$(BIN)/ruff check $(PYDIRS)
 	$(BIN)/python -m pytest
 
 demo: $(STAMP)
@@ -32,7 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/run.py --out bench/results/bench.json
 
 lint: $(STAMP)
-	$(BIN)/ruff check host protocol simulator tests bench
+	$(BIN)/ruff check $(PYDIRS)
 
 clean:
 	rm -rf $(VENV) $(OUT) bench/results
