@@ -4,6 +4,7 @@ VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 OUT     ?= out
+PYDIRS  := $(wildcard host protocol simulator tests bench)
 
 .PHONY: help venv test demo bench lint clean firmware
 
@@ -35,7 +36,7 @@ $(FW_IMAGE): firmware/servobot.bs2 firmware/tools/tokenize.js $(FW_DEPS)
 firmware: $(FW_IMAGE)
 
 test: $(STAMP) firmware
-	$(BIN)/ruff check host protocol simulator tests bench
+	$(BIN)/ruff check $(PYDIRS)
 	$(BIN)/python -m pytest
 
 demo: $(STAMP)
@@ -45,7 +46,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/run.py --out bench/results/bench.json
 
 lint: $(STAMP)
-	$(BIN)/ruff check host protocol simulator tests bench
+	$(BIN)/ruff check $(PYDIRS)
 
 clean:
 	rm -rf $(VENV) $(OUT) bench/results build firmware/node_modules
