@@ -1,42 +1,15 @@
-"""Fixtures for the firmware tests: the source, and Parallax's tokenizer run through Node.js."""
+"""Fixtures for the firmware tests. The helper modules (fw_*.py) sit beside this file."""
 
 from __future__ import annotations
 
-import json
-import shutil
-import subprocess
-from dataclasses import dataclass
+import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-FIRMWARE = ROOT / "firmware"
-SOURCE = FIRMWARE / "servobot.bs2"
-TOKENIZE = FIRMWARE / "tools" / "tokenize.js"
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the fw_* helpers, in any import mode
 
-
-@dataclass
-class Tokenized:
-    returncode: int
-    stdout: str
-    stderr: str
-    image: dict | None
-    path: Path | None
-
-
-def run_tokenizer(source: Path, out: Path) -> Tokenized:
-    if shutil.which("node") is None:
-        pytest.fail("Node.js is required to tokenize the firmware")
-    if not (FIRMWARE / "node_modules" / "pbasic-tokenizer").is_dir():
-        pytest.fail("the tokenizer is not installed: run `make firmware` (npm ci in firmware/)")
-    res = subprocess.run(
-        ["node", str(TOKENIZE), str(source), "--out", str(out)],
-        capture_output=True, text=True, timeout=120, check=False,
-    )
-    path = out / (source.stem + ".json")
-    image = json.loads(path.read_text()) if res.returncode == 0 and path.exists() else None
-    return Tokenized(res.returncode, res.stdout, res.stderr, image, path if image else None)
+from fw_build import SOURCE, Tokenized, run_tokenizer  # noqa: E402
 
 
 @pytest.fixture(scope="session")

@@ -9,7 +9,7 @@ thrust activations (all 29 when 2a >= 29), the other side all 29.
 from __future__ import annotations
 
 import pytest
-from conftest import SOURCE
+from fw_build import SOURCE
 from fw_pbasic import Program
 
 ACTIVATIONS = 58

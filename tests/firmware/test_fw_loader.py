@@ -6,8 +6,9 @@ import re
 
 import pytest
 import serial
-from conftest import SOURCE
+from fw_build import SOURCE
 from fw_fake_stamp import FakeStamp
+
 from pac_host.stamp_image import image_from_json
 from pac_host.stamp_loader import (
     NoStampError,

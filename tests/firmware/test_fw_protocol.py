@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections import Counter
 
 import pytest
-from conftest import SOURCE
+from fw_build import SOURCE
 from fw_pbasic import Host, Machine, Program, Stop
 
 BOOT = "A5 5A 02 C1 00 01 01 3A"

@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 
 import pytest
-from conftest import FIRMWARE, SOURCE
+from fw_build import FIRMWARE, SOURCE
 from fw_pbasic import Program, split_top, strip_comment
 
 STATEMENT_MS = 0.25

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from conftest import SOURCE, run_tokenizer
+from fw_build import SOURCE, run_tokenizer
+
 from pac_host.stamp_image import EEPROM_SIZE, check_packet
 
 RAM_BYTES = 26
