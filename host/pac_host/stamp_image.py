@@ -27,6 +27,8 @@ EEPROM_SIZE = 2048
 ADDRESS_FLAG = 0x80
 IMAGE_FORMAT = "servobot-image/1"
 FW_TAG = b"SB"  # EEPROM 0..1 of the ServoBot firmware; byte 2 firmware version, 3 protocol version
+TURN_CYCLE_ADDR = 4  # EEPROM 4..22 of the firmware: gene count, then 9 x (gait id, repetitions)
+TURN_CYCLE_SIZE = 19
 
 
 class TokenizeError(InputError):

@@ -122,7 +122,7 @@ class StampLoader:
                 f"({data.hex(' ')} -> {echo.hex(' ')}); the line is damaged or the speed is wrong"
             )
 
-    def _answer(self, what: str, timeout: float) -> int | None:
+    def _answer(self, timeout: float) -> int | None:
         got = self._read(1, timeout)
         return got[0] if got else None
 
@@ -153,7 +153,7 @@ class StampLoader:
         for b in ID_BYTES:
             what = f"identification byte {chr(b)!r} (0x{b:02X})"
             self._send_echoed(bytes([b]), what)
-            got = self._answer(what, self.answer_timeout)
+            got = self._answer(self.answer_timeout)
             want = id_answer(b)
             if got is None:
                 raise WrongModuleError(
@@ -166,7 +166,7 @@ class StampLoader:
                     f"a BS2 answers 0x{want:02X}"
                 )
         self._send_echoed(bytes([VERSION_REQUEST]), "the version request")
-        version = self._answer("version", self.answer_timeout)
+        version = self._answer(self.answer_timeout)
         if version is None:
             raise WrongModuleError(
                 f"the module on {self._name} passed identification but sent no version byte"
@@ -180,7 +180,7 @@ class StampLoader:
             f"0x{block * BLOCK_SIZE + BLOCK_SIZE - 1:03X})"
         )
         self._send_echoed(packet, where)
-        ack = self._answer(where, self.ack_timeout)
+        ack = self._answer(self.ack_timeout)
         kept = f"; {index} packet(s) before it were written, the program is incomplete"
         if ack is None:
             raise PacketNotAcknowledged(

@@ -147,3 +147,14 @@ def test_data_reader_matches_the_tokenized_eeprom(prog, built):
     for addr, value in prog.data.items():
         assert eeprom[addr] == value, addr
     assert prog.labels["GAITB"] - prog.labels["GAITA"] == THRUST * prog.consts["ACT_BYTES"]
+
+
+def test_eeprom_layout_the_host_and_emulator_rely_on(prog):
+    """FwInfo at 0 (tag, versions) and the turn cycle at TURN_CYCLE_ADDR, as the source says."""
+    from pac_host.stamp_image import FW_TAG, TURN_CYCLE_ADDR, TURN_CYCLE_SIZE
+
+    assert prog.labels["FWINFO"] == 0
+    assert bytes(prog.data[a] for a in range(len(FW_TAG))) == FW_TAG
+    assert prog.labels["TCCOUNT"] == TURN_CYCLE_ADDR
+    assert prog.labels["TCGENES"] == TURN_CYCLE_ADDR + 1
+    assert prog.labels["GAITA"] == TURN_CYCLE_ADDR + TURN_CYCLE_SIZE
