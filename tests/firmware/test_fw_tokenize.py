@@ -88,3 +88,15 @@ def test_source_is_the_one_tokenized(built):
     import hashlib
 
     assert built.image["source_sha256"] == hashlib.sha256(SOURCE.read_bytes()).hexdigest()
+
+
+def test_readme_quotes_todays_resource_report(built):
+    """The figures firmware/README.md quotes are the ones the tokenizer reports now."""
+    from fw_build import FIRMWARE
+
+    readme = (FIRMWARE / "README.md").read_text()
+    for line in built.stdout.splitlines()[:3]:
+        shown = line.strip().replace(str(SOURCE.parent.parent) + "/", "")
+        assert shown.split(": ", 1)[-1] in readme, shown
+    program = built.image["resources"]["eeprom"]["program"]
+    assert f"| {2048 - program}-2047 | the program" in readme
