@@ -20,12 +20,15 @@ request's payload byte is never taken for a reset.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from pac_host.stamp_image import (
     ADDRESS_FLAG,
     BLOCK_SIZE,
     EEPROM_SIZE,
+    FW_TAG,
     PACKET_SIZE,
+    TURN_CYCLE_ADDR,
     firmware_version_of,
 )
 from pac_host.stamp_loader import (
@@ -136,3 +139,37 @@ class StampDownload:
         addr = (p[0] & 0x7F) * BLOCK_SIZE
         self._mem[addr : addr + BLOCK_SIZE] = p[1 : 1 + BLOCK_SIZE]
         return bytes([ACK_OK])
+
+
+DOWNLOAD_IDLE_S = 1.0  # a download the host leaves quiet this long is abandoned
+
+
+class RawLine(Protocol):
+    def read_raw(self, timeout: float) -> bytes: ...
+    def write_raw(self, data: bytes) -> None: ...
+
+
+def servobot_eeprom(firmware_version: int, turn_cycle: bytes) -> bytes:
+    """The EEPROM of a Stamp running the ServoBot firmware, as far as the emulator models it:
+    the version tag at 0 and the turn cycle at :data:`TURN_CYCLE_ADDR` (the rest reads 0)."""
+    mem = bytearray(EEPROM_SIZE)
+    mem[: len(FW_TAG) + 1] = FW_TAG + bytes([firmware_version])
+    mem[TURN_CYCLE_ADDR : TURN_CYCLE_ADDR + len(turn_cycle)] = turn_cycle
+    return bytes(mem)
+
+
+def serve_download(
+    line: RawLine, first: bytes, eeprom_before: bytes, idle_s: float = DOWNLOAD_IDLE_S
+) -> StampDownload:
+    """Answer one download on ``line``, starting with the bytes ``first`` already received.
+
+    Returns when the host ends the download, breaks the protocol, or goes quiet for ``idle_s``.
+    """
+    dl = StampDownload(eeprom_before=eeprom_before)
+    line.write_raw(dl.feed(first))
+    while dl.active:
+        data = line.read_raw(idle_s)
+        if not data:
+            break
+        line.write_raw(dl.feed(data))
+    return dl

@@ -32,8 +32,9 @@ def fr(cmd: int, seq: int, *payload: int) -> str:
 class ScriptHost(Host):
     """Plays a list of ("S", frame) expected-from-Stamp and ("H", frame | None) host turns.
 
-    At each SERIN the host checks that the Stamp has sent exactly the expected frames so far,
-    then answers with the next host turn (None = stays silent: SERIN times out)."""
+    At each SERIN the host checks that everything the Stamp sent so far is exactly the expected
+    frames, then answers with the next host turn if the Stamp has sent every frame before it;
+    otherwise it stays silent (the SERIN times out). ("H", None) is an explicit silence."""
 
     def __init__(self, script: list[tuple[str, str | None]]) -> None:
         super().__init__()
@@ -41,10 +42,14 @@ class ScriptHost(Host):
         self.i = 0
         self.expected = bytearray()
         self.timeouts: list[int] = []
+        self.silences = 0
 
     def _take_stamp_lines(self) -> None:
         while self.i < len(self.script) and self.script[self.i][0] == "S":
-            self.expected += hx(self.script[self.i][1])
+            frame = hx(self.script[self.i][1])
+            if len(self.expected) + len(frame) > len(self.received):
+                return
+            self.expected += frame
             self.i += 1
 
     def serin(self, timeout_ms: int) -> bytes | None:
@@ -54,9 +59,14 @@ class ScriptHost(Host):
         )
         if self.i >= len(self.script):
             raise Stop
-        _, frame = self.script[self.i]
-        self.i += 1
         self.timeouts.append(timeout_ms)
+        who, frame = self.script[self.i]
+        if who == "S":  # the Stamp still has frames to send: the host keeps quiet
+            self.silences += 1
+            assert self.silences < 50, "the Stamp keeps listening but never sends what is expected"
+            return None
+        self.i += 1
+        self.silences = 0
         return None if frame is None else hx(frame)
 
 
@@ -72,7 +82,7 @@ def converse(prog: Program, script, machine: Machine | None = None) -> tuple[Mac
     with pytest.raises(Stop):
         m.run("Boot")
     host._take_stamp_lines()
-    assert host.i == len(script), "the firmware stopped listening before the script ended"
+    assert host.i == len(script), "the firmware stopped before the script ended"
     assert bytes(host.received) == bytes(host.expected)
     return m, host
 
@@ -172,3 +182,4 @@ def test_retried_load_is_not_written_twice(prog):
         ("S", READY_IDLE),
     ])
     assert m.writes == 4  # count 0, gene (2 bytes), count 1: once
+
