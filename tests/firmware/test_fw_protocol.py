@@ -183,3 +183,18 @@ def test_retried_load_is_not_written_twice(prog):
     ])
     assert m.writes == 4  # count 0, gene (2 bytes), count 1: once
 
+
+
+def test_stored_count_over_9_reads_as_0(prog):
+    m = Machine(prog)
+    m.eeprom[prog.labels["TCCOUNT"]] = 12  # never written by the firmware: damaged EEPROM
+    converse(prog, [
+        ("S", BOOT),
+        ("S", READY_IDLE), ("H", fr(0x07, 0x02, 0, 0, 0)),         # READ gene 0
+        ("S", fr(0x87, 0x02, 0, 0, 0, 0)),
+        ("S", READY_IDLE), ("H", fr(0x02, 0x03, 0, 0, 0)),         # STATUS
+        ("S", fr(0x82, 0x03, 0, 0, 0, 0, 0, 0)),
+        ("S", READY_IDLE), ("H", fr(0x04, 0x04, 1, 0, 0)),         # RUN 1: empty
+        ("S", fr(0x80, 0x04, 0x04, 0x05)),
+        ("S", READY_IDLE),
+    ], m)
