@@ -53,7 +53,7 @@ class Frame:
 def parse_frame(data: bytes) -> Frame:
     """Strictly parse exactly one frame; raise the typed :class:`FrameError` naming the fault."""
     data = bytes(data)
-    if data[:2] != SYNC[: len(data[:2])] or len(data) >= 1 and data[0] != SYNC[0]:
+    if data[:2] != SYNC[: len(data[:2])]:
         raise BadSync(f"frame must start with A5 5A, got {data[:2].hex(' ').upper() or 'nothing'}")
     if len(data) < HEADER:
         raise Truncated(f"frame of {len(data)} bytes is shorter than its {HEADER}-byte header")
