@@ -1,4 +1,4 @@
-"""The ServoBot wire protocol (protocol/PROTOCOL.md): framing, messages, stream decoder, host link."""
+"""The ServoBot wire protocol (protocol/PROTOCOL.md): frames, messages, decoder, host link."""
 
 from pac_protocol.decoder import FrameDecoder
 from pac_protocol.frame import Frame, check_value, parse_frame

@@ -1,4 +1,4 @@
-"""Typed errors of the wire protocol; all are :class:`pac_host.errors.PacError` so the CLI maps them."""
+"""Typed errors of the wire protocol; all are ``pac_host.errors.PacError``, so the CLI maps them."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ class ProtocolError(PacError):
 
 
 class FrameError(ProtocolError):
-    """A byte string is not one well-formed frame (strict parsing only; the stream decoder skips)."""
+    """Bytes that are not one well-formed frame (strict parsing; the stream decoder skips them)."""
 
     code = "frame"
 

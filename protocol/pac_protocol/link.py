@@ -105,6 +105,7 @@ class StampLink:
         self._frames: deque[Frame] = deque()
         self._last_rx = clock()
         self._seq = 0
+        self._acted_seq = 0
 
     # ---- reading ------------------------------------------------------------------------------
 
@@ -170,7 +171,10 @@ class StampLink:
     # ---- the exchange -------------------------------------------------------------------------
 
     def _next_seq(self) -> int:
+        """1..255, never the SEQ of the last LOAD/RUN/STEP the Stamp executed (PROTOCOL.md 4.2)."""
         self._seq = self._seq % 255 + 1
+        if self._seq == self._acted_seq:
+            self._seq = self._seq % 255 + 1
         return self._seq
 
     def _heard(self) -> str:
@@ -198,12 +202,19 @@ class StampLink:
             self.port.write(data)
             self.stats.sends += 1
             try:
-                return self._await_reply(msg, seq)
+                reply = self._await_reply(msg, seq)
             except _Retry as r:
                 why, ready_now = str(r), r.ready_now
+                continue
+            if isinstance(msg, Hello):
+                self._acted_seq = 0
+            elif isinstance(msg, Load | Run | Step):
+                self._acted_seq = seq
+            return reply
         raise NoAnswer(
             f"{self.name}: no answer to {msg.describe()} after {self.attempts} attempts "
-            f"(expected {reply_cmd(msg.CMD):02X} with SEQ {seq}; last: {why}; received {self._heard()})"
+            f"(expected {reply_cmd(msg.CMD):02X} with SEQ {seq}; last: {why}; "
+            f"received {self._heard()})"
         )
 
     def _await_reply(self, msg: Message, seq: int) -> Message:
@@ -257,7 +268,8 @@ class StampLink:
                 )
             if isinstance(ev, Boot):
                 raise StampReset(
-                    f"{self.name}: the Stamp reset during a run after {len(cycles)} reported gait cycles"
+                    f"{self.name}: the Stamp reset during a run after {len(cycles)} reported "
+                    "gait cycles"
                 )
             if isinstance(ev, Cycle):
                 cycles.append(ev)
@@ -313,4 +325,6 @@ def check_genes(genes: list[tuple[int, int]]) -> None:
         raise InputError(f"a turn cycle has 1..{MAX_GENES} genes, got {len(genes)}")
     for i, (g, r) in enumerate(genes):
         if not (0 <= g <= MAX_GAIT and 0 <= r <= MAX_REPS):
-            raise InputError(f"gene {i}: gait id {g} must be 0..{MAX_GAIT}, repetitions {r} 0..{MAX_REPS}")
+            raise InputError(
+                f"gene {i}: gait id {g} must be 0..{MAX_GAIT}, repetitions {r} 0..{MAX_REPS}"
+            )

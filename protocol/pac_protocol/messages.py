@@ -226,8 +226,13 @@ class HelloReply(Message):
     max_genes: int
 
     def payload(self) -> bytes:
-        return bytes([_u8(self.protocol, "protocol"), _u8(self.firmware, "firmware"),
-                      _u8(self.max_genes, "max_genes")])
+        return bytes(
+            [
+                _u8(self.protocol, "protocol"),
+                _u8(self.firmware, "firmware"),
+                _u8(self.max_genes, "max_genes"),
+            ]
+        )
 
     @classmethod
     def from_payload(cls, p: bytes) -> HelloReply:
@@ -244,8 +249,11 @@ class StatusReply(Message):
     power_on: int
 
     def payload(self) -> bytes:
-        return (bytes([_u8(self.state, "state"), _u8(self.count, "count")])
-                + _u16(self.done, "done") + _u16(self.power_on, "power_on"))
+        return (
+            bytes([_u8(self.state, "state"), _u8(self.count, "count")])
+            + _u16(self.done, "done")
+            + _u16(self.power_on, "power_on")
+        )
 
     @classmethod
     def from_payload(cls, p: bytes) -> StatusReply:
@@ -282,8 +290,17 @@ class GeneReply(Message):
     reps: int
 
     def payload(self) -> bytes:
-        return bytes([_u8(v, n) for v, n in ((self.count, "count"), (self.index, "index"),
-                                            (self.gait, "gait"), (self.reps, "reps"))])
+        return bytes(
+            [
+                _u8(v, n)
+                for v, n in (
+                    (self.count, "count"),
+                    (self.index, "index"),
+                    (self.gait, "gait"),
+                    (self.reps, "reps"),
+                )
+            ]
+        )
 
     @classmethod
     def from_payload(cls, p: bytes) -> GeneReply:
@@ -333,7 +350,11 @@ class Cycle(Message):
     power_on: int
 
     def payload(self) -> bytes:
-        return bytes([_u8(self.gait, "gait")]) + _u16(self.done, "done") + _u16(self.power_on, "power_on")
+        return (
+            bytes([_u8(self.gait, "gait")])
+            + _u16(self.done, "done")
+            + _u16(self.power_on, "power_on")
+        )
 
     @classmethod
     def from_payload(cls, p: bytes) -> Cycle:
@@ -357,11 +378,34 @@ class Done(Message):
 
 MESSAGES: dict[int, type[Message]] = {
     int(c.CMD): c
-    for c in (Hello, Status, Load, Run, Step, Stop, Read, Nak, HelloReply, StatusReply, LoadAck,
-              RunAck, StepAck, StopAck, GeneReply, Ready, Boot, Cycle, Done)
+    for c in (
+        Hello,
+        Status,
+        Load,
+        Run,
+        Step,
+        Stop,
+        Read,
+        Nak,
+        HelloReply,
+        StatusReply,
+        LoadAck,
+        RunAck,
+        StepAck,
+        StopAck,
+        GeneReply,
+        Ready,
+        Boot,
+        Cycle,
+        Done,
+    )
 }
-ACKS: dict[int, type[Message]] = {int(Cmd.LOAD): LoadAck, int(Cmd.RUN): RunAck,
-                                  int(Cmd.STEP): StepAck, int(Cmd.STOP): StopAck}
+ACKS: dict[int, type[Message]] = {
+    int(Cmd.LOAD): LoadAck,
+    int(Cmd.RUN): RunAck,
+    int(Cmd.STEP): StepAck,
+    int(Cmd.STOP): StopAck,
+}
 
 
 def reply_cmd(request_cmd: int) -> int:
@@ -373,7 +417,9 @@ def decode_message(frame: Frame) -> Message:
     """The typed message of a frame; UnknownCommand or BadPayload if this version has none."""
     cls = MESSAGES.get(frame.cmd)
     if cls is None:
-        raise UnknownCommand(f"CMD {frame.cmd:02X} is not defined in protocol version {PROTOCOL_VERSION}")
+        raise UnknownCommand(
+            f"CMD {frame.cmd:02X} is not defined in protocol version {PROTOCOL_VERSION}"
+        )
     if len(frame.payload) != cls.LEN:
         raise BadPayload(f"{cls.CMD.name} needs LEN {cls.LEN}, got {len(frame.payload)}")
     return cls.from_payload(frame.payload)

@@ -8,7 +8,6 @@ import stat
 import serial
 
 from pac_protocol.errors import PortError
-
 from pac_protocol.timing import BAUD
 
 
@@ -34,7 +33,11 @@ def open_port(port: str, baud: int = BAUD, timeout: float = 0.05) -> serial.Seri
         raise PortError(f"{port} is not a serial device ({kind})")
     ser = serial.Serial()
     ser.port, ser.baudrate, ser.timeout = port, baud, timeout
-    ser.bytesize, ser.parity, ser.stopbits = serial.EIGHTBITS, serial.PARITY_NONE, serial.STOPBITS_ONE
+    ser.bytesize, ser.parity, ser.stopbits = (
+        serial.EIGHTBITS,
+        serial.PARITY_NONE,
+        serial.STOPBITS_ONE,
+    )
     ser.dtr = False
     ser.rts = False
     try:
