@@ -282,6 +282,8 @@ class StampLink:
         """HELLO; checks the protocol version (VersionMismatch names port, expected, received)."""
         r = self.request(Hello())
         assert isinstance(r, HelloReply)
+        # a BOOT heard before HELLO is the power-on this session starts from, not news
+        self.events = deque(e for e in self.events if not isinstance(e, Boot))
         if r.protocol != PROTOCOL_VERSION:
             raise VersionMismatch(
                 f"{self.name}: expected protocol version {PROTOCOL_VERSION}, the Stamp speaks "
@@ -306,11 +308,14 @@ class StampLink:
         return r
 
     def run(self, cycles: int) -> None:
-        """Start the stored turn cycle for ``cycles`` gait cycles; reports follow as events."""
+        """Start the stored turn cycle for ``cycles`` gait cycles; reports follow as events
+        (reports still queued from before belong to an earlier run and are dropped)."""
+        self.events.clear()
         self.request(Run(cycles))
 
     def step(self, gait: int, reps: int) -> None:
-        """Start ``reps`` gait cycles of ``gait``; reports follow as events."""
+        """Start ``reps`` gait cycles of ``gait``; reports follow as events (older ones dropped)."""
+        self.events.clear()
         self.request(Step(gait, reps))
 
     def stop(self) -> None:

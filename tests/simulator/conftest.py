@@ -49,12 +49,12 @@ def make_sim():
     """Factory: an emulator (not yet started) with a pyserial port opened on it."""
     made = []
 
-    def make(start: bool = True, **kw) -> tuple[SimStamp, object]:
+    def make(started: bool = True, **kw) -> tuple[SimStamp, object]:
         kw.setdefault("factor", 0.0)
         sim = SimStamp(SimConfig(**kw))
         port = open_port(sim.path, timeout=0.02)
         made.append((sim, port))
-        if start:
+        if started:
             sim.start()
         return sim, port
 

@@ -46,7 +46,7 @@ def test_stamp_answers_each_vector(make_sim, v):
 def test_exchange_is_byte_exact(make_sim, ex):
     from conftest import RawHost
 
-    sim, port = make_sim(start=False, idle_floor_s=1.0, window_floor_s=0.2)
+    sim, port = make_sim(started=False, idle_floor_s=1.0, window_floor_s=0.2)
     for i, (g, r) in enumerate(ex["eeprom"]):
         sim.eeprom.write_gene(i, g, r)
     if ex["eeprom"]:
