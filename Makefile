@@ -27,6 +27,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest
 
 demo: $(STAMP)
+	rm -rf $(OUT)/demo-experiment
 	$(BIN)/pac-host experiment --seeds 4 --generations 400 --methods full,partial --jobs 2 --out $(OUT)/demo-experiment
 
 bench: $(STAMP)
