@@ -256,8 +256,11 @@ class StampLink:
                     self.stats.boots += 1
                 return m
 
-    def wait_done(self, timeout: float = EVENT_TIMEOUT_S) -> tuple[list[Cycle], Done]:
-        """Collect CYCLE reports until DONE. Raises StampReset on BOOT, NoAnswer on silence."""
+    def wait_done(
+        self, timeout: float = EVENT_TIMEOUT_S, on_cycle: Callable[[Cycle], None] | None = None
+    ) -> tuple[list[Cycle], Done]:
+        """Collect CYCLE reports (each also passed to ``on_cycle``) until DONE. Raises
+        StampReset on BOOT, NoAnswer if no report comes for ``timeout`` seconds."""
         cycles: list[Cycle] = []
         while True:
             ev = self.next_event(timeout)
@@ -273,6 +276,8 @@ class StampLink:
                 )
             if isinstance(ev, Cycle):
                 cycles.append(ev)
+                if on_cycle is not None:
+                    on_cycle(ev)
             elif isinstance(ev, Done):
                 return cycles, ev
 

@@ -13,9 +13,9 @@ import threading
 from pathlib import Path
 
 import click
-from pac_host.errors import InputError, PacError
-from pac_host.model import parse_effect
 
+from pac_host.cli.options import effect_option, load_with_effects, table_option
+from pac_host.errors import InputError, PacError
 from pac_sim.line import WINDOW_FLOOR_S, Faults
 from pac_sim.runner import SimConfig, SimStamp
 
@@ -66,8 +66,7 @@ def build_config(**o: object) -> SimConfig:
         reset_after=o["reset_after"],
         seed=o["seed"],
         eeprom=o["eeprom"],
-        table=o["table"],
-        effects=tuple(parse_effect(e) for e in o["effect"]),
+        table=load_with_effects(o["table_spec"], o["effect_specs"]),
         start=(x, y, h),
         tracker_noise=(pos, head),
         tracker=parse_tracker(o["tracker"]),
@@ -78,18 +77,8 @@ def build_config(**o: object) -> SimConfig:
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
-@click.option(
-    "--table",
-    default="shifted",
-    show_default=True,
-    help="The robot's true gait table: measured, shifted or a table file.",
-)
-@click.option(
-    "--effect",
-    multiple=True,
-    metavar="NAME:P=V,...",
-    help="An unmodelled effect of the true robot (repeatable), e.g. yaw_bias:delta=1.5.",
-)
+@table_option("shifted", "The robot's true gait table: measured, shifted or a table file.")
+@effect_option()
 @click.option(
     "--start",
     default="45,30,90",

@@ -18,6 +18,7 @@ import tty
 from dataclasses import dataclass
 
 import numpy as np
+
 from pac_protocol.frame import REQUEST_PAYLOAD, SYNC
 from pac_protocol.timing import BYTE_S
 

@@ -12,10 +12,10 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
+
 from pac_host.errors import InputError
 from pac_host.model import Effect, GaitTable, resolve_table
 from pac_protocol.messages import PROTOCOL_VERSION
-
 from pac_sim.eeprom import Eeprom
 from pac_sim.line import IDLE_FLOOR_S, WINDOW_FLOOR_S, Faults, PtyLine
 from pac_sim.stamp import FIRMWARE_VERSION, StampEmulator

@@ -34,7 +34,6 @@ from pac_protocol.messages import (
     StatusReply,
 )
 from pac_protocol.timing import T_CYCLE_S, T_EEPROM_WRITE_S, T_IDLE_S, T_PROCESS_S, T_RUN_S
-
 from pac_sim.eeprom import Eeprom
 from pac_sim.line import Shutdown
 from pac_sim.world import World

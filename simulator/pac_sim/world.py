@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
 from pac_host.model import Effect, GaitTable, integrate, step_moves
 
 START_POSE = (45.0, 30.0, 90.0)  # the paper's start pose

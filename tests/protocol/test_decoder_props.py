@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from pac_protocol.decoder import FrameDecoder
 from pac_protocol.errors import FrameError
 from pac_protocol.frame import MAX_PAYLOAD, Frame, parse_frame

@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import pytest
+
 from pac_protocol import errors
 from pac_protocol.decoder import FrameDecoder
 from pac_protocol.frame import parse_frame

@@ -6,6 +6,7 @@ import time
 from collections import deque
 
 import pytest
+
 from pac_protocol.decoder import FrameDecoder
 from pac_protocol.frame import Frame
 from pac_protocol.messages import Cmd

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import pytest
+
 from pac_protocol.messages import Cmd, Hello
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from pac_protocol.errors import Nacked, NoAnswer, PortError, StampReset, VersionMismatch
 from pac_protocol.link import StampLink
 from pac_protocol.messages import Cmd, Done, Err, Load, Reason, State

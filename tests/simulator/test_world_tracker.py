@@ -6,6 +6,7 @@ import socket
 
 import numpy as np
 import pytest
+
 from pac_host.errors import InputError
 from pac_host.model import parse_effect, rollout, shifted_table
 from pac_protocol.link import StampLink
