@@ -6,13 +6,14 @@ STAMP   := $(VENV)/.installed
 OUT     ?= out
 PYDIRS  := $(wildcard host protocol simulator tests bench)
 
-.PHONY: help venv test demo bench lint clean
+.PHONY: help venv test demo bench lint sim clean
 
 help:
 	@echo "make demo    run a short paper experiment on the built-in simulated robot"
 	@echo "make test    install into .venv and run the test suite"
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
 	@echo "make lint    ruff"
+	@echo "make sim     run the Stamp emulator on a pseudo-terminal (REALTIME=0 for full speed)"
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -32,6 +33,9 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py --out bench/results/bench.json
+
+sim: $(STAMP)
+	$(BIN)/pac-sim --realtime $(or $(REALTIME),1)
 
 lint: $(STAMP)
 	$(BIN)/ruff check $(PYDIRS)

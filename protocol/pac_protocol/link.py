@@ -102,6 +102,7 @@ class StampLink:
         self.seen: deque[str] = deque(maxlen=4)  # recent frames, for error messages
         self.rx_bytes = 0
         self.last_seq = -1
+        self.last_round_trip_s = float("nan")  # request written -> reply decoded, last success
         self._frames: deque[Frame] = deque()
         self._last_rx = clock()
         self._seq = 0
@@ -201,8 +202,10 @@ class StampLink:
                 )
             self.port.write(data)
             self.stats.sends += 1
+            t0 = self.clock()
             try:
                 reply = self._await_reply(msg, seq)
+                self.last_round_trip_s = self.clock() - t0
             except _Retry as r:
                 why, ready_now = str(r), r.ready_now
                 continue
