@@ -63,3 +63,9 @@ def make_sim():
     for sim, port in made:
         port.close()
         sim.close()
+
+
+@pytest.fixture
+def raw_host():
+    """The RawHost class (fixtures are how test modules here share helpers)."""
+    return RawHost

@@ -23,11 +23,9 @@ def _answer_after_ready(host, data: bytes):
 
 
 @pytest.mark.parametrize("v", REQUEST_LIKE + FRAMES["refused"], ids=lambda v: v["name"])
-def test_stamp_answers_each_vector(make_sim, v):
-    from conftest import RawHost
-
-    sim, port = make_sim(idle_floor_s=0.3)
-    host = RawHost(port)
+def test_stamp_answers_each_vector(make_sim, raw_host, v):
+    sim, port = make_sim(idle_floor_s=0.15)
+    host = raw_host(port)
     f = _answer_after_ready(host, bytes.fromhex(v["hex"]))
     if v["stamp_reply"] is None:
         assert f is not None and f.cmd == Cmd.READY  # ignored: timed out, listening again
@@ -44,16 +42,14 @@ def test_stamp_answers_each_vector(make_sim, v):
 
 
 @pytest.mark.parametrize("ex", EXCHANGES["exchanges"], ids=lambda e: e["name"])
-def test_exchange_is_byte_exact(make_sim, ex):
-    from conftest import RawHost
-
+def test_exchange_is_byte_exact(make_sim, raw_host, ex):
     sim, port = make_sim(started=False, idle_floor_s=1.0, window_floor_s=0.2)
     for i, (g, r) in enumerate(ex["eeprom"]):
         sim.eeprom.write_gene(i, g, r)
     if ex["eeprom"]:
         sim.eeprom.write_count(len(ex["eeprom"]))
     sim.start()
-    host = RawHost(port)
+    host = raw_host(port)
     last = None
     for step in ex["steps"]:
         if step["from"] == "host":
