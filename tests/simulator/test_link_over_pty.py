@@ -174,3 +174,30 @@ def test_host_dies_mid_request(make_sim):
     fresh.load([(4, 4)])
     assert sim.eeprom.turn_cycle() == [(4, 4)]
     assert (Cmd.LOAD, 200) not in sim.stamp.executed
+
+
+def test_reset_button_while_idle_is_a_boot_event(make_sim):
+    sim, link = link_on(make_sim)
+    link.hello()
+    link.step(12, 2)
+    link.wait_done()
+    sim.stamp.reset()
+    ev = link.next_event(2.0)
+    assert ev is not None and ev.CMD == Cmd.BOOT
+    assert link.stats.boots == 2  # the power-on BOOT and this one
+    assert link.status().power_on == 0 and sim.stamp.boots == 2
+
+
+def test_stop_from_a_second_session_while_running(make_sim):
+    """A run started by one host session is stopped by another (e.g. `pac-host robot stop`)."""
+    sim, port = make_sim(factor=0.01)
+    first = StampLink(port, name=sim.path)
+    first.hello()
+    first.load([(12, 1), (28, 1)])
+    first.run(5000)
+    second = StampLink(open_port(sim.path), name=sim.path)
+    second.hello()  # in a window between gait cycles
+    second.stop()
+    second.port.close()
+    st = first.status()
+    assert st.state == State.IDLE and 0 < st.done < 5000 and sim.world.seq == st.done
