@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
+from pac_host.errors import InputError
 from pac_protocol.decoder import FrameDecoder
 from pac_protocol.errors import MessageError, Nacked, NoAnswer, StampReset, VersionMismatch
 from pac_protocol.frame import Frame
@@ -332,8 +333,6 @@ class StampLink:
 
 def check_genes(genes: list[tuple[int, int]]) -> None:
     """Raise InputError unless ``genes`` is a turn cycle the Stamp accepts."""
-    from pac_host.errors import InputError
-
     if not 1 <= len(genes) <= MAX_GENES:
         raise InputError(f"a turn cycle has 1..{MAX_GENES} genes, got {len(genes)}")
     for i, (g, r) in enumerate(genes):

@@ -179,7 +179,7 @@ class StampEmulator:
     def _read(self, seq: int, p0: int, *_: int) -> bool:
         if p0 >= MAX_GENES:
             return self._nak_arg(Cmd.READ, seq)
-        self._send(GeneReply(self.eeprom.image[0], p0, *self.eeprom.gene(p0)), seq)
+        self._send(GeneReply(self.eeprom.count, p0, *self.eeprom.gene(p0)), seq)
         return False
 
     def _stop(self, seq: int, *_: int) -> bool:
