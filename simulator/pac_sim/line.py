@@ -74,6 +74,7 @@ class PtyLine:
         self.path = os.ttyname(self._slave)
         self._stopped = threading.Event()
         self._wake_r, self._wake_w = os.pipe()  # stop() wakes a blocked select at once
+        self._closed = False
         self.sent = 0
         self.received = 0
         self.lost = 0  # bytes that arrived while the Stamp was not listening
@@ -188,6 +189,8 @@ class PtyLine:
                     return bytes(got)
 
     def stop(self) -> None:
+        if self._stopped.is_set():
+            return
         self._stopped.set()
         try:
             os.write(self._wake_w, b"x")
@@ -195,6 +198,11 @@ class PtyLine:
             pass
 
     def close(self) -> None:
+        """Stop and release the pty. Idempotent: closing twice must not close descriptor
+        numbers the process has since handed to someone else."""
+        if self._closed:
+            return
+        self._closed = True
         self.stop()
         for fd in (self.master, self._slave, self._wake_r, self._wake_w):
             try:

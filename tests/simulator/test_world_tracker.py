@@ -96,3 +96,12 @@ def test_bad_eeprom_file_is_one_clear_error(tmp_path):
     bad.write_text('{"format": "pac-sim-eeprom/1", "image": "zz"}')
     with pytest.raises(InputError, match="EEPROM file"):
         Eeprom(bad)
+
+
+def test_closing_twice_leaves_other_emulators_alone(make_sim):
+    sim, _ = make_sim()
+    sim.close()
+    sim2, port2 = make_sim()  # may reuse the first one's descriptor numbers
+    sim.close()
+    link = StampLink(port2)
+    assert link.hello().protocol == 1
