@@ -48,6 +48,10 @@ REPLY_TIMEOUT_S = 0.3
 ATTEMPTS = 4
 QUIET_S = 0.05  # a partial frame older than this is abandoned (PROTOCOL.md 6)
 EVENT_TIMEOUT_S = 5.0  # longest wait for the next report of a run
+HINTS = {
+    Err.BUSY: " (a run is in progress: send STOP first)",
+    Err.EMPTY: " (no runnable turn cycle is stored: LOAD one first)",
+}
 
 
 class SerialLike(Protocol):
@@ -233,7 +237,8 @@ class StampLink:
                     raise _Retry("NAK bad check")
                 if self.last_seq == seq:
                     raise Nacked(
-                        f"{self.name}: the Stamp refused {msg.describe()}: {m.error_name()}",
+                        f"{self.name}: the Stamp refused {msg.describe()}: {m.error_name()}"
+                        + HINTS.get(m.error, ""),
                         m.command,
                         m.error,
                     )

@@ -78,6 +78,13 @@ def test_protocol_md_examples_are_in_the_vectors():
         assert h in known, h
 
 
+def test_exchanges_use_every_message_type():
+    """The byte-exact exchanges (run through the emulator) cover every CMD the protocol has."""
+    ex = json.loads((ROOT / "protocol" / "vectors" / "exchanges.json").read_text())
+    cmds = {bytes.fromhex(s["hex"])[3] for e in ex["exchanges"] for s in e["steps"]}
+    assert cmds == set(MESSAGES)
+
+
 def test_request_frames_are_nine_bytes():
     for v in VECTORS["valid"]:
         if v["direction"] == "request":

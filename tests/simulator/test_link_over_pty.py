@@ -47,7 +47,7 @@ def test_refusals_raise_typed_errors_without_retry(make_sim):
     link.hello()
     with pytest.raises(Nacked) as e:
         link.run(5)
-    assert e.value.error == Err.EMPTY and "EMPTY" in str(e.value)
+    assert e.value.error == Err.EMPTY and "EMPTY (no runnable turn cycle" in str(e.value)
     with pytest.raises(Nacked) as e:
         link.request(Load(3, 0, 32, 1))
     assert e.value.error == Err.BAD_ARG
