@@ -1,0 +1,1 @@
+"""pac_sim: the ServoBot emulator (protocol-level model and the PBASIC interpreter)."""

@@ -1,0 +1,84 @@
+"""The BS2's variable RAM: 16 words (INS, OUTS, DIRS, then W0..W12 = 26 bytes of user RAM).
+
+A variable is a bit range of that RAM: ``Loc(off, size)`` with ``off`` in bits from the start
+of INS and ``size`` 1, 4, 8 or 16. The allocator places declarations as the tokenizer does,
+words first, then bytes, nibbles, bits (each in declaration order) from W0 upward, so aliases
+and the predefined W0..W12 / B0..B25 names overlap exactly as on the Stamp.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+REGISTERS = 16
+USER_BASE = 3 * 16  # first bit of W0
+USER_BITS = 26 * 8
+SIZE_BITS = {"BIT": 1, "NIB": 4, "BYTE": 8, "WORD": 16}
+SIZE_NAMES = {1: "Bit", 4: "Nib", 8: "Byte", 16: "Word"}
+IO_WORDS = {1, 2}  # writing OUTS or DIRS changes what INS reads
+
+
+@dataclass(frozen=True, slots=True)
+class Loc:
+    """A fixed bit range of RAM."""
+
+    off: int
+    size: int
+
+
+def predefined_locations() -> dict[str, Loc]:
+    """The names every BS2 program has: W0..W12, B0..B25, INS/OUTS/DIRS and their parts."""
+    locs: dict[str, Loc] = {}
+    for i in range(13):
+        locs[f"W{i}"] = Loc(USER_BASE + 16 * i, 16)
+    for i in range(26):
+        locs[f"B{i}"] = Loc(USER_BASE + 8 * i, 8)
+    for reg, prefix in enumerate(("IN", "OUT", "DIR")):
+        base = reg * 16
+        locs[prefix + "S"] = Loc(base, 16)
+        locs[prefix + "L"] = Loc(base, 8)
+        locs[prefix + "H"] = Loc(base + 8, 8)
+        for k, letter in enumerate("ABCD"):
+            locs[prefix + letter] = Loc(base + 4 * k, 4)
+        for b in range(16):
+            locs[f"{prefix}{b}"] = Loc(base + b, 1)
+    return locs
+
+
+def modifier(loc_size: int, name: str) -> tuple[int, int] | None:
+    """(bit offset, size) of a modifier such as HIGHBYTE or BIT3 within a variable of loc_size
+    bits, or None when the modifier does not fit in the variable."""
+    if name in ("LOWBYTE", "BYTE0"):
+        delta, size = 0, 8
+    elif name in ("HIGHBYTE", "BYTE1"):
+        delta, size = 8, 8
+    elif name == "LOWNIB":
+        delta, size = 0, 4
+    elif name == "HIGHNIB":
+        delta, size = 4, 4
+    elif name.startswith("NIB"):
+        delta, size = 4 * int(name[3:]), 4
+    elif name == "LOWBIT":
+        delta, size = 0, 1
+    elif name == "HIGHBIT":
+        delta, size = loc_size - 1, 1
+    else:  # BITn
+        delta, size = int(name[3:]), 1
+    if delta + size > loc_size:
+        return None
+    return delta, size
+
+
+def allocate(decls: list[tuple[str, int, int]]) -> tuple[dict[str, Loc], int]:
+    """Place (name, size bits, count) declarations: words, then bytes, nibs, bits.
+
+    Returns the locations and the number of RAM bits used; the caller checks the 208-bit limit.
+    """
+    locs: dict[str, Loc] = {}
+    off = USER_BASE
+    for size in (16, 8, 4, 1):
+        for name, sz, count in decls:
+            if sz == size:
+                locs[name] = Loc(off, size)
+                off += size * count
+    return locs, off - USER_BASE
