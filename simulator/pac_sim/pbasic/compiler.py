@@ -22,6 +22,22 @@ from .symbols import RAM_BITS_TOTAL, CodeLabel, Symbols
 
 GOSUB_DEPTH = 4
 CMP_PY = {"=": "==", "<>": "!=", "<": "<", ">": ">", "<=": "<=", ">=": ">="}
+# Python source templates of the operators (16-bit unsigned results, see operators.py).
+UNARY_SRC = {
+    "NOT": "(not {a})", "-": "((-{a}) & 65535)", "~": "(~{a} & 65535)",
+    "DCD": "(1 << ({a} & 15))", "NCD": "int({a}).bit_length()", "ABS": "_abs({a})",
+    "SQR": "_isqrt({a})",
+}
+BINARY_SRC = {
+    "AND": "(bool({a}) and bool({b}))", "OR": "(bool({a}) or bool({b}))",
+    "XOR": "(bool({a}) != bool({b}))", "+": "(({a} + {b}) & 65535)", "-": "(({a} - {b}) & 65535)",
+    "*": "(({a} * {b}) & 65535)", "**": "(({a} * {b}) >> 16)", "*/": "((({a} * {b}) >> 8) & 65535)",
+    "&": "({a} & {b})", "|": "({a} | {b})", "^": "({a} ^ {b})", "/": "_div({a}, {b})",
+    "//": "_mod({a}, {b})", "<<": "_shl({a}, {b})", ">>": "_shr({a}, {b})", "MIN": "max({a}, {b})",
+    "MAX": "min({a}, {b})", "DIG": "_dig({a}, {b})", "REV": "_rev({a}, {b})",
+}
+BINARY_CONST_SRC = {"/": "({a} // {b})", "//": "({a} % {b})", "<<": "(({a} << {b}) & 65535)",
+                    ">>": "({a} >> {b})"}
 
 
 @dataclass
@@ -185,19 +201,7 @@ class Compiler:
             return self.read_src(node, line), False
         if isinstance(node, S.Unary):
             a, _ = self.gx(node.operand, line)
-            op = node.op
-            if op == "NOT":
-                return f"(not {a})", True
-            if op == "-":
-                return f"((-{a}) & 65535)", False
-            if op == "~":
-                return f"(~{a} & 65535)", False
-            if op == "DCD":
-                return f"(1 << ({a} & 15))", False
-            if op == "NCD":
-                return f"int({a}).bit_length()", False
-            fn = {"ABS": "_abs", "SQR": "_isqrt"}[op]
-            return f"{fn}({a})", False
+            return UNARY_SRC[node.op].format(a=a), node.op == "NOT"
         if isinstance(node, S.Binary):
             return self.binary_src(node, line)
         raise self.error(line, "unsupported expression")
@@ -207,41 +211,12 @@ class Compiler:
         a, _ = self.gx(node.left, line)
         b, _ = self.gx(node.right, line)
         rc = self.sym.fold(node.right, line, pins_as_numbers=False)
-        if op in ("AND", "OR"):
-            return f"(bool({a}) {op.lower()} bool({b}))", True
-        if op == "XOR":
-            return f"(bool({a}) != bool({b}))", True
         if op in CMP_PY:
             return f"({a} {CMP_PY[op]} {b})", True
-        if op in ("+", "-", "*"):
-            return f"(({a} {op} {b}) & 65535)", False
-        if op == "**":
-            return f"(({a} * {b}) >> 16)", False
-        if op == "*/":
-            return f"((({a} * {b}) >> 8) & 65535)", False
-        if op in ("&", "|", "^"):
-            return f"({a} {op} {b})", False
-        if op in ("/", "//"):
-            if rc:
-                return f"({a} {'//' if op == '/' else '%'} {rc})", False
-            return f"{'_div' if op == '/' else '_mod'}({a}, {b})", False
-        if op == "<<":
-            if rc is not None:
-                return (f"(({a} << {rc}) & 65535)", False) if rc < 16 else ("0", False)
-            return f"_shl({a}, {b})", False
-        if op == ">>":
-            if rc is not None:
-                return (f"({a} >> {rc})", False) if rc < 16 else ("0", False)
-            return f"_shr({a}, {b})", False
-        if op == "MIN":
-            return f"max({a}, {b})", False
-        if op == "MAX":
-            return f"min({a}, {b})", False
-        if op == "DIG":
-            return f"_dig({a}, {b})", False
-        if op == "REV":
-            return f"_rev({a}, {b})", False
-        raise self.error(line, f"operator {op} is not supported")
+        if rc is not None and (op in ("<<", ">>") or (op in ("/", "//") and rc)):
+            template = BINARY_CONST_SRC[op] if op in ("/", "//") or rc < 16 else "0"
+            return template.format(a=a, b=rc), False
+        return BINARY_SRC[op].format(a=a, b=b), op in ("AND", "OR", "XOR")
 
     def gv(self, node, line: int) -> str:
         """Source of an expression as an int (bools become 1/0)."""
