@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pytest
-
 from pac_sim.pbasic import PbasicRuntimeError, Stamp
 
 EXPECTED = (

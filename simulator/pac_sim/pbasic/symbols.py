@@ -129,6 +129,7 @@ class Symbols:
         pending = {a.name: a for a in aliases}
         for a in aliases:
             self._resolve_alias(a, pending, 0)
+        self._layout_data(datas)
         for name in list(self.con_expr):
             self.constant(name, self.con_expr[name][1])
         for name, (expr, line) in self.pin_expr.items():
@@ -136,7 +137,6 @@ class Symbols:
             if v > 15:
                 raise self.error(line, f"PIN {name} = {v}: the BS2 has pins 0 to 15")
             self.pins[name] = v
-        self._layout_data(datas)
 
     def _resolve_alias(self, a: S.VarDecl, pending: dict, depth: int) -> Loc:
         if a.name in self.vars and a.name not in pending:

@@ -1,0 +1,67 @@
+"""DATA layout in EEPROM, READ/WRITE (with Word), write costs and wear counts."""
+
+from __future__ import annotations
+
+import pytest
+from pac_sim.pbasic import PbasicSyntaxError
+
+PROGRAM = (
+    "Table  DATA 1, 2, Word 1000, \"Hi\"\n"
+    "Zeros  DATA 0(3)\n"
+    "Marks  DATA Word $1234(2)\n"
+    "Gap    DATA (2)\n"
+    "After  DATA @100, 7\n"
+    "Link   DATA Table, Word After\n"
+    "Size   CON Zeros - Table\n"
+)
+
+
+def test_data_labels_and_bytes(stamp):
+    s = stamp(PROGRAM + "END\n")
+    img = s.eeprom.mem
+    assert list(img[0:6]) == [1, 2, 1000 & 0xFF, 1000 >> 8, ord("H"), ord("i")]
+    assert list(img[6:9]) == [0, 0, 0]
+    assert list(img[9:13]) == [0x34, 0x12, 0x34, 0x12]
+    assert img[100] == 7
+    assert list(img[101:104]) == [0, 100, 0]  # Table = 0, Word After = 100
+    sym = s.program.symbols
+    assert (sym.data_addr["ZEROS"], sym.data_addr["GAP"], sym.data_addr["LINK"]) == (6, 13, 101)
+    assert sym.con_value["SIZE"] == 6
+
+
+def test_read_and_write_words(run):
+    s = run(PROGRAM + "a VAR Byte\nb VAR Byte\nw VAR Word\nv VAR Word\n"
+            "READ Table, a, b, Word w\nWRITE 200, Word 54321, 9\nREAD 200, Word v\nEND\n")
+    assert (s.var("a"), s.var("b"), s.var("w"), s.var("v")) == (1, 2, 1000, 54321)
+    assert s.eeprom.mem[202] == 9
+    assert s.eeprom.writes[200] == s.eeprom.writes[201] == 1
+
+
+def test_write_costs_eeprom_time(run):
+    s = run("x VAR Byte\nFOR x = 1 TO 3\n  WRITE 10, x\nNEXT\nEND\n")
+    assert s.eeprom.writes[10] == 3
+    assert s.now_us >= 3 * 5000  # 5 ms per EEPROM write, in Stamp time
+
+
+def test_overlapping_data_is_an_error(stamp):
+    with pytest.raises(PbasicSyntaxError, match=r"t\.bs2:4: DATA location 1 is already occupied"):
+        stamp("DATA 1, 2\nDATA @1, 5\n")
+
+
+def test_data_past_eeprom_is_an_error(stamp):
+    with pytest.raises(PbasicSyntaxError, match=r"t\.bs2:3: DATA beyond the 2048-byte EEPROM"):
+        stamp("DATA @2047, Word 5\n")
+
+
+def test_tokenizer_image_must_agree_with_data(stamp):
+    from pac_sim.pbasic import Stamp
+
+    src = "' {$PBASIC 2.5}\nDATA 5, 6\nEND\n"
+    good = bytearray(2048)
+    good[0:2] = b"\x05\x06"
+    good[2000] = 0xAB  # program tokens live at the top; they are kept
+    s = Stamp.from_source(src, "t.bs2", eeprom_image=bytes(good))
+    assert s.eeprom.mem[2000] == 0xAB
+    good[1] = 7
+    with pytest.raises(ValueError, match="differs from the DATA at address 1"):
+        Stamp.from_source(src, "t.bs2", eeprom_image=bytes(good))
