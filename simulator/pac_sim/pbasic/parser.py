@@ -395,11 +395,10 @@ class Parser:
                 body, term = self.block({"ELSEIF", "ELSE", "ENDIF"})
                 branches.append((c, body))
             elif term.value == "ELSE":
-                if orelse is not None:
-                    raise self.error("a second ELSE in one IF", term.line)
                 orelse, term = self.block({"ENDIF", "ELSEIF", "ELSE"})
                 if term is not None and term.value != "ENDIF":
-                    raise self.error(f"{term.value} after ELSE", term.line)
+                    what = "ELSEIF after ELSE" if term.value == "ELSEIF" else "a second ELSE"
+                    raise self.error(what, term.line)
             else:
                 return S.If(line, branches, orelse)
 
