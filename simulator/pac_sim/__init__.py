@@ -1,1 +1,1 @@
-"""pac_sim: the ServoBot emulator (protocol-level model and the PBASIC interpreter)."""
+"""`pac-sim`: an emulator of the ServoBot Stamp on a pseudo-terminal, with a simulated world."""

@@ -56,7 +56,7 @@ def test_data_past_eeprom_is_an_error(stamp):
 def test_tokenizer_image_must_agree_with_data(stamp):
     from pac_sim.pbasic import Stamp
 
-    src = "' {$PBASIC 2.5}\nDATA 5, 6\nEND\n"
+    src = "' {$STAMP BS2}\n' {$PBASIC 2.5}\nDATA 5, 6\nEND\n"
     good = bytearray(2048)
     good[0:2] = b"\x05\x06"
     good[2000] = 0xAB  # program tokens live at the top; they are kept

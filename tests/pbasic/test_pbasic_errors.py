@@ -53,6 +53,16 @@ def test_directives(directive, message):
         Stamp.from_source(directive + "\nEND\n", "d.bs2")
 
 
+@pytest.mark.parametrize("form", ["{$STAMP BS2}", "' {$STAMP BS2}", "'{$STAMP BS2} comment"])
+def test_directive_forms(form):
+    assert Stamp.from_source(form + "\nEND\n", "d.bs2").run_for(1) == "ended"
+
+
+def test_stamp_directive_is_required():
+    with pytest.raises(PbasicSyntaxError, match=r"d\.bs2:1: \$STAMP directive not found"):
+        Stamp.from_source("' just a comment\nEND\n", "d.bs2")
+
+
 def test_case_insensitive(run):
     s = run("Counter var byte\ncounter = 3\nIF COUNTER = 3 then counter = counter + 1\nend\n")
     assert s.var("counter") == 4
@@ -62,4 +72,4 @@ def test_syntax_error_is_an_input_error():
     from pac_host.errors import InputError
 
     with pytest.raises(InputError):
-        Stamp.from_source("GOTO\n", "e.bs2")
+        Stamp.from_source("' {$STAMP BS2}\nGOTO\n", "e.bs2")

@@ -79,8 +79,8 @@ def test_inlined_code_matches_reference_semantics(vals, ops):
     """Generated code on variables agrees with a left-to-right fold of the reference operators."""
     a, b, c = vals
     expected = BINARY[ops[1]](BINARY[ops[0]](a, b), c) & 0xFFFF
-    src = (f"r VAR Word\na VAR Word\nb VAR Word\nc VAR Word\na = {a}\nb = {b}\nc = {c}\n"
-           f"r = a {ops[0]} b {ops[1]} c\nEND\n")
+    src = (f"' {{$STAMP BS2}}\nr VAR Word\na VAR Word\nb VAR Word\nc VAR Word\n"
+           f"a = {a}\nb = {b}\nc = {c}\nr = a {ops[0]} b {ops[1]} c\nEND\n")
     s = Stamp.from_source(src, "prop.bs2")
     s.run_for(1)
     assert s.var("r") == expected

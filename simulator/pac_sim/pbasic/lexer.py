@@ -2,7 +2,8 @@
 
 Case-insensitive like the Stamp editor: every name is upper-cased. Numbers are decimal, ``$hex``
 or ``%binary``. ``'`` starts a comment. A line that ends with a comma continues on the next line
-(PBASIC 2.5 allows this in lists). ``{$STAMP BS2}`` style directives become ``dir`` tokens.
+(PBASIC 2.5 allows this in lists). Directives, ``{$STAMP BS2}`` or in the editor's comment
+form ``' {$STAMP BS2}``, become ``dir`` tokens.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ class Token:
 _TOKEN = re.compile(
     r"""
     (?P<ws>[ \t\f\r]+)
+  | (?P<cdir>'[ \t]*\{\$[^}\n]*\}[^\n]*)
   | (?P<comment>'[^\n]*)
   | (?P<nl>\n)
   | (?P<dir>\{\$[^}\n]*\})
@@ -81,6 +83,9 @@ def tokenize(text: str, filename: str = "<source>") -> list[Token]:
             out.append(Token("str", s[1:-1], line))
         elif kind == "dir":
             out.append(Token("dir", s[2:-1].strip(), line))
+        elif kind == "cdir":  # the editor's usual form: a directive in a comment
+            inner = s[s.index("{$") + 2:s.index("}")]
+            out.append(Token("dir", inner.strip(), line))
         else:
             out.append(Token("op", s, line))
     if out and out[-1].kind != "nl":

@@ -214,6 +214,8 @@ class Parser:
         stmts, term = self.block(set())
         if term is not None:
             raise self.error(f"{term.value} without a matching opening statement", term.line)
+        if not any(isinstance(s, S.Directive) and s.text.startswith("STAMP") for s in stmts):
+            raise self.error("$STAMP directive not found (the program needs ' {$STAMP BS2})", 1)
         return stmts
 
     def block(self, terminators: set[str]) -> tuple[list, Token | None]:

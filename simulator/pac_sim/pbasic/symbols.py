@@ -72,6 +72,7 @@ class Symbols:
         for name in self.vars:
             self.kind[name] = "var"
         self.ram_bits = 0
+        self.var_counts: dict[str, int] = {}
         self._collect(stmts)
 
     def error(self, line: int, msg: str) -> PbasicSyntaxError:
@@ -125,6 +126,9 @@ class Symbols:
                 f"{(used + 7) // 8} bytes; the BS2 has 26",
             )
         self.ram_bits = used
+        self.var_counts = {name: sum(c for _, sz, c in decls if sz == size)
+                           for name, size in (("words", 16), ("bytes", 8), ("nibbles", 4),
+                                              ("bits", 1))}
         self.vars.update(locs)
         pending = {a.name: a for a in aliases}
         for a in aliases:

@@ -1,0 +1,93 @@
+"""The interpreter agrees with Parallax's tokenizer (npm pbasic-tokenizer, via the firmware's
+tools/tokenize.js): same programs accepted, same errors on the same lines, same RAM counts and
+the same DATA bytes in EEPROM. Skipped where node or the tokenizer is not installed."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+from pac_sim.pbasic import PbasicSyntaxError, Stamp
+
+ROOT = Path(__file__).resolve().parents[2]
+TOKENIZE = ROOT / "firmware" / "tools" / "tokenize.js"
+PROGRAMS = sorted((Path(__file__).parent / "programs").glob("*.bs2"))
+FIRMWARE = ROOT / "firmware" / "servobot.bs2"
+HEADER = "' {$STAMP BS2}\n' {$PBASIC 2.5}\n"
+
+pytestmark = pytest.mark.skipif(
+    shutil.which("node") is None or not TOKENIZE.exists()
+    or not (ROOT / "firmware" / "node_modules" / "pbasic-tokenizer").exists(),
+    reason="node or the pbasic-tokenizer package is not installed (make firmware installs it)",
+)
+
+
+def tokenize(source: Path, out: Path) -> dict:
+    """The tokenizer's image JSON, or {"error_line": n, "message": ...} when it rejects."""
+    r = subprocess.run(["node", str(TOKENIZE), str(source), "--out", str(out), "--quiet"],
+                       capture_output=True, text=True, timeout=60)
+    if r.returncode != 0:
+        m = re.search(r":(\d+):\d+: error \S+: (.*)", r.stderr)
+        assert m, r.stderr
+        return {"error_line": int(m.group(1)), "message": m.group(2)}
+    return json.loads((out / (source.stem + ".json")).read_text())
+
+
+def defined_data(image: dict) -> dict[int, int]:
+    eeprom = bytes.fromhex(image["eeprom"])
+    flags = bytes.fromhex(image["eeprom_flags"])
+    return {a: eeprom[a] for a in range(len(eeprom)) if flags[a] & 3 == 2}
+
+
+def check_same(path: Path, tmp_path: Path) -> None:
+    image = tokenize(path, tmp_path)
+    assert "error_line" not in image, image
+    s = Stamp.from_file(path)
+    ram = image["resources"]["ram"]
+    mine = s.program.symbols.var_counts
+    assert {k: ram[k] for k in mine} == mine
+    ours = {a: s.program.data_image[a] for a in s.program.symbols.data_used}
+    assert ours == defined_data(image)
+
+
+@pytest.mark.parametrize("path", PROGRAMS, ids=[p.name for p in PROGRAMS])
+def test_test_programs_agree(path, tmp_path):
+    check_same(path, tmp_path)
+
+
+def test_firmware_agrees(tmp_path):
+    if not FIRMWARE.exists():
+        pytest.skip("no firmware/servobot.bs2 in this checkout")
+    check_same(FIRMWARE, tmp_path)
+    image = tokenize(FIRMWARE, tmp_path)
+    Stamp.from_file(FIRMWARE, eeprom_image=bytes.fromhex(image["eeprom"]))
+
+
+def test_data_layout_agrees(tmp_path):
+    from test_pbasic_data import PROGRAM
+
+    src = tmp_path / "data.bs2"
+    src.write_text(HEADER + PROGRAM + "x VAR Word\ny VAR Nib\nz VAR Bit\nEND\n")
+    check_same(src, tmp_path)
+
+
+def test_error_lines_agree(tmp_path):
+    """Where the tokenizer rejects a program of the error tests, we reject it on the same line."""
+    from test_pbasic_errors import CASES
+
+    compared = 0
+    for i, (body, _, _) in enumerate(CASES):
+        src = tmp_path / f"e{i}.bs2"
+        src.write_text(HEADER + body)
+        theirs = tokenize(src, tmp_path)
+        if "error_line" not in theirs:
+            continue  # valid PBASIC that this emulator does not support (FREQOUT, RANDOM...)
+        with pytest.raises(PbasicSyntaxError) as exc:
+            Stamp.from_file(src)
+        assert exc.value.line == theirs["error_line"], (body, theirs["message"])
+        compared += 1
+    assert compared >= 15
