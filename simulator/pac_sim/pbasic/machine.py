@@ -203,16 +203,16 @@ class Stamp:
         return self.lines[pin]
 
     def feed(self, data: bytes, pin: int | None = None, at_us: int | None = None,
-             baudmode: int = 84) -> None:
+             baudmode: int = 84, echo: bool = True) -> None:
         """Bytes sent towards a pin starting at Stamp time at_us (default: now), back to back at
         baudmode. Bytes that start before a SERIN listens are lost. The programming port (16)
-        echoes every byte it receives, as the BS2's does."""
+        echoes every byte it receives, as the BS2's does (echo=False leaves the echo out)."""
         if pin is None:
             pin = self.session.pin if self.state == SERIN and self.session else PROGRAMMING_PORT
         t = self.now_us if at_us is None else at_us
         frame = clock.byte_us(baudmode)
         frames = self.line(pin).send(bytes(data), t, frame)
-        if pin == PROGRAMMING_PORT:
+        if pin == PROGRAMMING_PORT and echo:
             for start, _, b in frames:
                 self.output.write(PROGRAMMING_PORT, start, frame, bytes((b,)))
 
