@@ -249,6 +249,7 @@ class Compiler:
     def compile(self) -> Compiled:
         self.block(self.stmts)
         self.emit_special(0, lambda nxt: lambda: self.m.halt("END", nxt - 1))  # ran off the end
+        self.emit_special(0, lambda nxt: lambda: self.m.halt("CALL", nxt - 1))  # Stamp.call returns
         lines = [e.line for e in self.entries]
         code: list = [None] * len(self.entries)
         specials: dict[int, Callable[[], int]] = {}

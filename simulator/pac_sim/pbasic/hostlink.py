@@ -65,40 +65,42 @@ def serve(stamp: Stamp, link: ByteLink, *, pin: int = PROGRAMMING_PORT, factor: 
     stamp0 = stamp.now_us
     sent = len(stamp.output.frames)
 
-    def flush() -> None:
-        nonlocal sent
-        frames = stamp.output.frames[sent:]
-        sent = len(stamp.output.frames)
-        data = bytes(b for _, p, b in sorted(frames, key=lambda f: f[0]) if p == pin)
-        if data:
-            link.write(data)
-
-    def pace() -> None:
+    def pace(t_us: int) -> None:
+        """Sleep until wall time catches up with Stamp time t_us (scaled by factor)."""
         if factor > 0:
-            ahead = (stamp.now_us - stamp0) / 1e6 * factor - (time.monotonic() - wall0)
+            ahead = (t_us - stamp0) / 1e6 * factor - (time.monotonic() - wall0)
             if ahead > 0:
                 time.sleep(ahead)
 
+    def flush() -> None:
+        """Send the new output on the host pin, each byte when its Stamp time comes."""
+        nonlocal sent
+        frames = sorted(stamp.output.frames[sent:], key=lambda f: f[0])
+        sent = len(stamp.output.frames)
+        for t_us, p, b in frames:
+            if p == pin:
+                pace(t_us)
+                link.write(bytes((b,)))
+
     while not stop.is_set():
-        t_before = stamp.now_us
         state = stamp.run(CHUNK_US)
         if on_chunk is not None:
             on_chunk(stamp)
-        pace()
         flush()
+        pace(stamp.now_us)
         if state == ENDED:
             return ENDED
-        late = link.read(0.0)
-        if late:  # arrived while the program was busy: nobody listening, the bytes are lost
-            stamp.feed(late, pin=pin, at_us=t_before, echo=echo)
-            flush()
         if state != SERIN:
+            busy = link.read(0.0)
+            if busy:  # sent while the program is busy: lost when it next listens
+                stamp.feed(busy, pin=pin, echo=echo)
+                flush()
             continue
         w = stamp.waiting()
         remaining = None if w.deadline_us is None else max(0, w.deadline_us - stamp.now_us)
         wait_s = floor_s if remaining is None else max(floor_s, remaining / 1e6 * factor)
         t0 = time.monotonic()
-        data = link.read(min(wait_s, 0.1) if remaining is None else wait_s)
+        data = link.read(wait_s)
         if data:
             waited_us = int((time.monotonic() - t0) / factor * 1e6) if factor > 0 else 0
             if remaining is not None:

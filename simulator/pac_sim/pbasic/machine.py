@@ -127,6 +127,14 @@ class Stamp:
         reg, sh = divmod(loc.off, 16)
         return (self.ram[reg] >> sh) & ((1 << loc.size) - 1)
 
+    def set_var(self, name: str, value: int) -> None:
+        """Store into a declared (or predefined) variable, truncated to its size."""
+        loc = self.program.symbols.vars[name.upper()]
+        reg, sh = divmod(loc.off, 16)
+        mask = (1 << loc.size) - 1
+        self.ram[reg] = (self.ram[reg] & ~(mask << sh) & 0xFFFF) | ((value & mask) << sh)
+        self.io_sync()
+
     def line_at(self, pc: int | None = None) -> int:
         return self.program.lines[self.pc if pc is None else pc]
 
@@ -171,6 +179,25 @@ class Stamp:
             self.icount += 1
             if npc >= 0:
                 self.pc = npc
+
+    def call(self, label: str, max_s: float = 10.0, **variables: int) -> None:
+        """Run one subroutine on its own, as GOSUB would: set variables, jump to label, stop at
+        its RETURN. For testing a firmware's routines (e.g. one gait cycle) in isolation."""
+        pos = self.program.labels.get(label.upper())
+        if pos is None:
+            raise KeyError(f"no label {label} in {self.filename}")
+        for name, value in variables.items():
+            self.set_var(name, value)
+        self.stack.clear()
+        self.stack.append(len(self.program.code) - 1)
+        self.session = None
+        self.state = READY
+        self.pc = pos
+        state = self.run(int(max_s * 1e6), silent=True)
+        if state != ENDED or self.halted_by != "CALL":
+            where = f"{self.filename}:{self.line_at()}"
+            raise RuntimeError(f"{where}: {label} did not RETURN within {max_s:g} s ({state})")
+        self.state = READY
 
     def run_until_serin(self, limit_s: float = 5.0) -> SerinWait:
         """Run until the program waits in SERIN; raise StampNotListening if it does not within
