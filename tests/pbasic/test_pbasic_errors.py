@@ -27,6 +27,8 @@ CASES = [
     ("w VAR Word\nw = w.BIT16\n", 4, "unknown variable modifier .BIT16"),
     ("Led PIN 20\n", 3, "the BS2 has pins 0 to 15"),
     ("x VAR Byte\nHIGH 17\n", 4, "pin 17 does not exist"),
+    ("PULSOUT 16, 750\n", 3, "pin 16 does not exist (BS2 pins: 0-15)"),
+    ("SEROUT 17, 84, [1]\n", 3, "pin 17 does not exist (BS2 pins: 0-15, 16 = programming port)"),
     ("x VAR Byte\nx = 1 % 2\n", 4, "unexpected character"),
     ("x VAR Byte(0)\n", 3, "array length must be a positive number"),
     ("x VAR Byte\nIF x THEN\nELSE\nELSE\nENDIF\n", 6, "a second ELSE"),

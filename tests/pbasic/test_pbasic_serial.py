@@ -91,5 +91,5 @@ def test_ended_program_is_reported(stamp):
 
 def test_debug_is_captured_not_printed(run, capsys):
     s = run("x VAR Byte\nx = 7\nDEBUG \"x=\", DEC x, CR, DEC ? x\nEND\n")
-    assert s.debug_text == "x=7\rX = 7\r"
+    assert s.debug_text == "x=7\rx = 7\r"
     assert capsys.readouterr().out == ""

@@ -28,8 +28,3 @@ def bit_us(baudmode: int) -> int:
 def byte_us(baudmode: int) -> int:
     """Time of one serial frame (start, 8 data, stop) at a BS2 baudmode."""
     return FRAME_BITS * bit_us(baudmode)
-
-
-def baudmode_for(baud: int, inverted: bool = True) -> int:
-    """The BS2 baudmode for a baud rate (8N1), e.g. 9600 -> 84 (16468 inverted)."""
-    return (round(1_000_000 / baud) - 20) | (0x4000 if inverted else 0)

@@ -63,7 +63,6 @@ class Compiled:
     symbols: Symbols
     ram: list[int]
     data_image: bytes
-    instructions: int = 0
     labels: dict[str, int] = field(default_factory=dict)
 
 
@@ -91,7 +90,7 @@ class Compiler:
             "_mod": lambda a, b: a % b if b else 0xFFFF, "_dig": _dig, "_rev": _rev, "_abs": _abs,
             "_isqrt": isqrt, "_shl": lambda a, b: (a << b) & 0xFFFF if b < 16 else 0,
             "_shr": lambda a, b: a >> b if b < 16 else 0, "_iosync": machine.io_sync,
-            "_fail": self._fail, "_wre": machine.eeprom_word,
+            "_fail": self._fail,
         }
         self.stmts = stmts
 
@@ -227,12 +226,14 @@ class Compiler:
         """Source of an expression used as a condition (truthy)."""
         return self.gx(node, line)[0]
 
-    def pin_src(self, node, line: int) -> str:
-        """A pin argument: a PIN name is its number here, not the value on the pin."""
+    def pin_src(self, node, line: int, serial: bool = False) -> str:
+        """A pin argument: a PIN name is its number here, not the value on the pin. Pins are
+        0-15; serial commands may also use 16, the programming port."""
         c = self.sym.fold(node, line, pins_as_numbers=True)
         if c is not None:
-            if c > 16:
-                raise self.error(line, f"pin {c} does not exist (BS2: 0-15, 16 = programming port)")
+            if c > (16 if serial else 15):
+                ports = "0-15, 16 = programming port" if serial else "0-15"
+                raise self.error(line, f"pin {c} does not exist (BS2 pins: {ports})")
             return str(c)
         return self.gv(node, line)
 
@@ -534,7 +535,7 @@ class Compiler:
         return lambda i, v: self._wr(off + (start() + i) * size, size, v, line)
 
     def c_serout(self, s: S.Serout) -> None:
-        pin = self.fn(self.pin_src(s.pin, s.line))
+        pin = self.fn(self.pin_src(s.pin, s.line, serial=True))
         baud = self.fn(self.gv(s.baud, s.line))
         pace = self.fn(self.gv(s.pace, s.line)) if s.pace is not None else (lambda: 0)
         render = self.out_renderer(s.items, s.line)
@@ -553,7 +554,8 @@ class Compiler:
                 yield from step()
 
         spec = SerinSpec(
-            s.line, self.fn(self.pin_src(s.pin, s.line)), self.fn(self.gv(s.baud, s.line)),
+            s.line, self.fn(self.pin_src(s.pin, s.line, serial=True)),
+            self.fn(self.gv(s.baud, s.line)),
             self.fn(self.gv(s.timeout, s.line)) if s.timeout is not None else None,
             self.label(s.tlabel, s.line) if s.tlabel else None, consumer)
         self.emit_special(s.line, lambda nxt: lambda: self.m.serin(spec, nxt))

@@ -21,6 +21,7 @@ class Token:
     kind: str
     value: object
     line: int
+    text: str = ""  # the source spelling (names are upper-cased in value)
 
     def is_op(self, *ops: str) -> bool:
         return self.kind == "op" and self.value in ops
@@ -72,13 +73,13 @@ def tokenize(text: str, filename: str = "<source>") -> list[Token]:
                 out.append(Token("nl", None, line))
             line += 1
         elif kind == "hex":
-            out.append(Token("num", int(s[1:].replace("_", ""), 16), line))
+            out.append(Token("num", int(s[1:].replace("_", ""), 16), line, s))
         elif kind == "bin":
-            out.append(Token("num", int(s[1:].replace("_", ""), 2), line))
+            out.append(Token("num", int(s[1:].replace("_", ""), 2), line, s))
         elif kind == "dec":
-            out.append(Token("num", int(s.replace("_", "")), line))
+            out.append(Token("num", int(s.replace("_", "")), line, s))
         elif kind == "name":
-            out.append(Token("name", s.upper(), line))
+            out.append(Token("name", s.upper(), line, s))
         elif kind == "str":
             out.append(Token("str", s[1:-1], line))
         elif kind == "dir":
@@ -87,7 +88,7 @@ def tokenize(text: str, filename: str = "<source>") -> list[Token]:
             inner = s[s.index("{$") + 2:s.index("}")]
             out.append(Token("dir", inner.strip(), line))
         else:
-            out.append(Token("op", s, line))
+            out.append(Token("op", s, line, s))
     if out and out[-1].kind != "nl":
         out.append(Token("nl", None, line))
     out.append(Token("eof", None, line))

@@ -335,9 +335,6 @@ class Stamp:
         self.extra_us += clock.WRITE_US * len(data)
         return nxt
 
-    def eeprom_word(self, addr: int) -> int:
-        return self.eeprom.read(addr) | (self.eeprom.read(addr + 1) << 8)
-
     @property
     def debug_text(self) -> str:
         return self.debug_log.decode("latin-1")

@@ -10,11 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-REGISTERS = 16
 USER_BASE = 3 * 16  # first bit of W0
 USER_BITS = 26 * 8
 SIZE_BITS = {"BIT": 1, "NIB": 4, "BYTE": 8, "WORD": 16}
-SIZE_NAMES = {1: "Bit", 4: "Nib", 8: "Byte", 16: "Word"}
 IO_WORDS = {1, 2}  # writing OUTS or DIRS changes what INS reads
 
 

@@ -669,7 +669,7 @@ class Parser:
             if show:
                 start = self.i
                 e = self.expr()
-                text = " ".join(str(tok.value) for tok in self.toks[start:self.i])
+                text = " ".join(tok.text or str(tok.value) for tok in self.toks[start:self.i])
                 return ("fmt", fmt[0], fmt[1], e, text)
             return ("fmt", fmt[0], fmt[1], self.expr(), None)
         return ("raw", self.expr())

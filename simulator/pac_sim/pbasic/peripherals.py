@@ -50,16 +50,6 @@ class SerialLine:
         self.received += 1
         return end, b
 
-    def pending(self) -> int:
-        return len(self.queue)
-
-    def drop_before(self, t_us: int) -> None:
-        """Discard (as lost) the bytes that started before t_us: nobody was listening."""
-        q = self.queue
-        while q and q[0][0] < t_us:
-            q.popleft()
-            self.lost += 1
-
 
 @dataclass
 class SerialOutput:
