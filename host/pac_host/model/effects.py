@@ -10,7 +10,8 @@ world-frame drift after each body-frame move.
 
 >>> import numpy as np
 >>> from pac_host.model.table import measured_table
->>> body, world = step_moves(measured_table().rows, np.array([12, 12]), [Effect("yaw_bias", {"delta": 1.5})])
+>>> bias = Effect("yaw_bias", {"delta": 1.5})
+>>> body, world = step_moves(measured_table().rows, np.array([12, 12]), [bias])
 >>> body[:, 2].tolist()
 [1.5, 1.5]
 """
@@ -164,10 +165,24 @@ def effective_rows(rows: np.ndarray, effects: Iterable[Effect]) -> np.ndarray:
 def gather_rows(rows: np.ndarray, gait_ids: np.ndarray) -> np.ndarray:
     """Rows of the executed gait cycles: (32, 3) or (K, 32, 3) rows, ids (..., n) or (K, ..., n)."""
     if rows.ndim == 2:
-        return rows[gait_ids]
+        return np.take(rows, gait_ids, axis=0)
     k = rows.shape[0]
     base = (np.arange(k) * 32).reshape((k,) + (1,) * (gait_ids.ndim - 1))
-    return rows.reshape(-1, 3)[gait_ids + base]
+    return np.take(rows.reshape(-1, rows.shape[-1]), gait_ids + base, axis=0)
+
+
+def has_sequence_effects(effects: Iterable[Effect]) -> bool:
+    """True when some effect depends on the executed sequence, not just on the gait id."""
+    return any(EFFECT_SPECS[e.name].stage == "sequence" for e in effects)
+
+
+def world_drift(effects: Iterable[Effect]) -> np.ndarray | None:
+    """The world-frame drift (dx, dy) per gait cycle, or None when no effect adds one."""
+    for e in effects:
+        if e.name == "floor_slope":
+            th = math.radians(e.params["theta"])
+            return np.array([e.params["s"] * math.sin(th), e.params["s"] * math.cos(th)])
+    return None
 
 
 def step_moves(
@@ -185,8 +200,8 @@ def step_moves(
     """
     effects = _canonical(effects)
     gait_ids = np.asarray(gait_ids)
-    body = gather_rows(effective_rows(rows, effects), gait_ids)
-    world = None
+    table = effective_rows(rows, effects)
+    body = gather_rows(table, gait_ids)
     for e in effects:
         p = e.params
         if e.name == "transition" and p["alpha"] > 0:
@@ -195,10 +210,8 @@ def step_moves(
             changed = np.zeros(gait_ids.shape, dtype=bool)
             changed[..., 1:] = gait_ids[..., 1:] != gait_ids[..., :-1]
             if prev_gait is not None and gait_ids.shape[-1] > 0:
-                prev[..., 0, :] = gather_rows(
-                    effective_rows(rows, [x for x in effects if EFFECT_SPECS[x.name].stage == "table"]),
-                    np.full(gait_ids.shape[:-1] + (1,), prev_gait),
-                )[..., 0, :]
+                first = np.full(gait_ids.shape[:-1] + (1,), prev_gait)
+                prev[..., 0, :] = gather_rows(table, first)[..., 0, :]
                 changed[..., 0] = gait_ids[..., 0] != prev_gait
             a = p["alpha"]
             body = np.where(changed[..., None], (1 - a) * body + a * prev, body)
@@ -206,8 +219,6 @@ def step_moves(
             i = np.arange(gait_ids.shape[-1])
             factor = np.maximum(0.0, 1.0 - p["beta"] * (np.asarray(n0)[..., None] + i))
             body = body * factor[..., None]
-        elif e.name == "floor_slope":
-            th = math.radians(p["theta"])
-            drift = np.array([p["s"] * math.sin(th), p["s"] * math.cos(th)])
-            world = np.broadcast_to(drift, body.shape[:-1] + (2,))
+    drift = world_drift(effects)
+    world = None if drift is None else np.broadcast_to(drift, body.shape[:-1] + (2,))
     return body, world

@@ -1,0 +1,54 @@
+"""`pac-host simulate`: run one turn cycle on a gait table and report the path and coverage."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from pac_host.cli.options import effect_option, load_with_effects, table_option
+from pac_host.coverage import DEFAULT_BUDGET, START_POSE, check_budget, parse_turn_cycle, simulate
+
+
+@click.command("simulate")
+@table_option()
+@effect_option()
+@click.option("--turn-cycle", "turn_cycle", required=True, metavar="ID:REPS,...",
+              help='Looped genes of gait cycle id (0..31) and repetitions (0..63), '
+                   'e.g. "12:14,3:10".')
+@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
+              help="Gait cycles to run.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also draw the path on the area to this PNG.")
+def simulate_cmd(table_spec, effect_specs, turn_cycle, budget, as_json, plot) -> None:
+    """Walk a turn cycle from the start pose (45, 30, 90) and score the path.
+
+    Prints the pose after each gait cycle and the coverage figures: blocks covered, blocks
+    covered exactly once, the coverage fitness 3R + c, and repeat visits.
+    """
+    table = load_with_effects(table_spec, effect_specs)
+    genes = parse_turn_cycle(turn_cycle)
+    cov = simulate(table.rows, genes, check_budget(budget), table.effects, START_POSE,
+                   keep_paths=True)
+    poses = cov.poses[0]
+    if plot:
+        from pac_host.plots import coverage_path
+
+        coverage_path(poses, cov.blocks[0], plot, f"{turn_cycle} on {table.name}", cov.row(0))
+    if as_json:
+        doc = {"poses": [[float(v) for v in p] for p in poses], **cov.row(0)}
+        click.echo(json.dumps(doc))
+        return
+    blocks = cov.blocks[0]
+    click.echo(f"{'cycle':>5} {'x cm':>9} {'y cm':>9} {'h deg':>9}  block")
+    for i, (p, b) in enumerate(zip(poses, blocks, strict=True)):
+        block = f"row {b // 3} col {b % 3}" if b >= 0 else "-"
+        click.echo(f"{i:>5} {p[0]:9.2f} {p[1]:9.2f} {p[2]:9.2f}  {block}")
+    for k, v in cov.row(0).items():
+        click.echo(f"{k}: {v}")
+
+
+def register(main: click.Group) -> None:
+    main.add_command(simulate_cmd)

@@ -1,0 +1,133 @@
+"""The model GA: co-evolves gait tables so the model agrees with tests on the robot.
+
+A model is a gait table (32 genes, each an (F, T, dH) row). Its fitness is the paper's six
+absolute differences: blocks covered and blocks covered once, model against robot, for each of
+the three tested turn cycles (lower is better).
+
+Two recombination modes:
+
+- ``full``: a standard GA over all 32 genes.
+- ``partial`` (the paper's partial recombination): only the genes the tested turn cycles use are
+  extracted, in the order the turn cycles first need them, into a short chromosome; selection,
+  crossover and mutation act on that, and the result is put back, so every gene not used keeps
+  its value in every model, bit for bit.
+
+>>> import numpy as np
+>>> used_gait_ids(np.array([[[12, 14], [3, 10], [12, 3], [19, 0]]])).tolist()
+[12, 3]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pac_host.coverage import DEFAULT_BUDGET, START_POSE, simulate
+from pac_host.ga_ops import elite_indices, tournament, two_point_crossover
+from pac_host.model.effects import Effect
+
+METHODS = ("full", "partial")
+# Standard deviation of a mutation (and of the initial perturbation) per component F, T, dH:
+# about the difference between neighbouring turn strengths in the measured table.
+DEFAULT_SCALE = (0.6, 0.4, 1.5)
+
+
+@dataclass(frozen=True)
+class ModelGAConfig:
+    """Model GA settings (project choices where the paper is silent)."""
+
+    population: int = 64
+    elite: int = 1
+    tournament_size: int = 2
+    crossover_rate: float = 0.7
+    gene_mutation_rate: float = 0.15  # per gene (row) of the chromosome being evolved
+    scale: tuple[float, float, float] = DEFAULT_SCALE
+    budget: int = DEFAULT_BUDGET
+
+
+def perturbed_population(
+    base: np.ndarray, size: int, rng: np.random.Generator, scale: Sequence[float] = DEFAULT_SCALE
+) -> np.ndarray:
+    """``size`` models made by perturbing every value of ``base`` (32, 3) with Gaussian noise;
+    model 0 is ``base`` itself, so the starting model is never lost."""
+    pop = base[None] + rng.normal(size=(size,) + base.shape) * np.asarray(scale)
+    pop[0] = base
+    return pop
+
+
+def used_gait_ids(tests: np.ndarray) -> np.ndarray:
+    """Gait ids the turn cycles (k, 9, 2) use, in order of first use (genes with 0 repetitions
+    are skipped and so not used)."""
+    seen: dict[int, None] = {}
+    for gid, reps in np.asarray(tests).reshape(-1, 2):
+        if reps > 0:
+            seen.setdefault(int(gid), None)
+    return np.fromiter(seen, dtype=np.int64, count=len(seen))
+
+
+def model_fitness(
+    tables: np.ndarray,
+    tests: np.ndarray,
+    observed: np.ndarray,
+    budget: int = DEFAULT_BUDGET,
+    effects: Sequence[Effect] = (),
+    start_pose: Sequence[float] = START_POSE,
+) -> np.ndarray:
+    """Sum of |model - robot| over blocks covered and blocks covered once of each test.
+
+    ``tables`` (M, 32, 3); ``tests`` (k, 9, 2); ``observed`` (k, 2): the robot's (blocks
+    covered, blocks covered once) per test. Returns (M,) errors, lower is better.
+    """
+    cov = simulate(tables, tests, budget, effects, start_pose)
+    err = np.abs(cov.blocks_covered - observed[None, :, 0])
+    err += np.abs(cov.blocks_covered_once - observed[None, :, 1])
+    return err.sum(axis=1)
+
+
+def breed(
+    chroms: np.ndarray, error: np.ndarray, rng: np.random.Generator, cfg: ModelGAConfig
+) -> np.ndarray:
+    """One generation on chromosomes (M, L, 3): elitism, tournaments, crossover between genes,
+    Gaussian mutation of whole genes."""
+    fit = -error.astype(np.float64)
+    n = chroms.shape[0]
+    elite = chroms[elite_indices(fit, cfg.elite)]
+    n_children = n - len(elite)
+    a = chroms[tournament(fit, n_children, rng, cfg.tournament_size)]
+    b = chroms[tournament(fit, n_children, rng, cfg.tournament_size)]
+    children = two_point_crossover(a, b, cfg.crossover_rate, rng)
+    hit = rng.random(children.shape[:2]) < cfg.gene_mutation_rate
+    noise = rng.normal(size=children.shape) * np.asarray(cfg.scale)
+    children = children + noise * hit[..., None]
+    return np.concatenate([elite, children])
+
+
+def evolve(
+    tables: np.ndarray,
+    tests: np.ndarray,
+    observed: np.ndarray,
+    generations: int,
+    rng: np.random.Generator,
+    method: str = "partial",
+    cfg: ModelGAConfig = ModelGAConfig(),
+    effects: Sequence[Effect] = (),
+) -> tuple[np.ndarray, np.ndarray]:
+    """Evolve the model population against the robot's results on ``tests``.
+
+    Returns the new population (M, 32, 3), sorted best first, and its errors.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown recombination method {method!r}; use one of {METHODS}")
+    tables = np.array(tables, dtype=np.float64, copy=True)
+    genes = used_gait_ids(tests) if method == "partial" else np.arange(tables.shape[1])
+    error = model_fitness(tables, tests, observed, cfg.budget, effects)
+    for _ in range(generations):
+        if len(genes) == 0:
+            break
+        # In partial mode, slot i's unused genes stay as they are: only genes[] is written.
+        tables[:, genes] = breed(tables[:, genes], error, rng, cfg)
+        error = model_fitness(tables, tests, observed, cfg.budget, effects)
+    order = np.argsort(error, kind="stable")
+    return tables[order], error[order]

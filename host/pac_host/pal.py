@@ -1,0 +1,278 @@
+"""Punctuated anytime learning (DESIGN.md 2.5): the CGA learns on the model while the model GA
+corrects the model from periodic tests on the robot.
+
+Every punctuation, the CGA's best turn cycle and two perturbations of it run on the robot (real
+or simulated) and on every model; the model GA evolves the models towards the robot's results;
+its best model becomes the CGA's model; the robot's operational turn cycle is replaced only when
+the CGA's best does better on the robot.
+
+The robot is anything with ``run_tests(tests) -> list[TestResult]`` (:class:`Robot`); the
+simulated actual robot of the paper is :class:`SimulatedRobot`.
+
+>>> import numpy as np
+>>> from pac_host.model import measured_table, shifted_table
+>>> robot = SimulatedRobot(shifted_table())
+>>> state = initial_state(measured_table(), np.random.default_rng(0), PALConfig(cga_population=16))
+>>> state, rec = punctuate(state, robot, np.random.default_rng(1), PALConfig(cga_population=16))
+>>> len(rec["tests"]), rec["generation"]
+(3, 0)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Protocol
+
+import numpy as np
+
+from pac_host import cga, model_ga
+from pac_host.coverage import (
+    DEFAULT_BUDGET,
+    MAX_REPS,
+    START_POSE,
+    Coverage,
+    coverage_score,
+    fitness_of_score,
+    format_turn_cycle,
+    simulate,
+)
+from pac_host.errors import InputError
+from pac_host.model.table import GaitTable
+
+
+@dataclass(frozen=True)
+class TestResult:
+    """What the robot did on one tested turn cycle: coverage figures, and the path if observed."""
+
+    blocks_covered: int
+    blocks_covered_once: int
+    fitness: int
+    repeat_visits: int
+    poses: np.ndarray | None = None
+
+    @property
+    def score(self) -> int:
+        return int(coverage_score(self.fitness, self.repeat_visits))
+
+    def figures(self) -> dict:
+        return {
+            "blocks_covered": self.blocks_covered,
+            "blocks_covered_once": self.blocks_covered_once,
+            "fitness": self.fitness,
+            "repeat_visits": self.repeat_visits,
+        }
+
+
+class Robot(Protocol):
+    """The robot side of PAL: runs each turn cycle from the start pose for the budget."""
+
+    def run_tests(self, tests: np.ndarray) -> list[TestResult]: ...
+
+
+def results_from_coverage(cov: Coverage) -> list[TestResult]:
+    poses = cov.poses if cov.poses is not None else [None] * len(cov.fitness)
+    return [
+        TestResult(int(c), int(o), int(f), int(r), p)
+        for c, o, f, r, p in zip(
+            cov.blocks_covered, cov.blocks_covered_once, cov.fitness, cov.repeat_visits, poses,
+            strict=True,
+        )
+    ]
+
+
+@dataclass
+class SimulatedRobot:
+    """The paper's simulated actual robot: a true table (with its effects) in the simulator."""
+
+    table: GaitTable
+    budget: int = DEFAULT_BUDGET
+    start_pose: Sequence[float] = START_POSE
+
+    def run_tests(self, tests: np.ndarray) -> list[TestResult]:
+        cov = simulate(self.table.rows, tests, self.budget, self.table.effects, self.start_pose,
+                       keep_paths=True)
+        return results_from_coverage(cov)
+
+
+@dataclass(frozen=True)
+class PALConfig:
+    """Settings of the PAL loop (DESIGN.md 2.5 and the project's GA defaults)."""
+
+    method: str = "partial"
+    generations: int = 1000  # CGA generations in all
+    interval: int = 40  # CGA generations between punctuations
+    model_generations: int = 40  # model GA generations per punctuation
+    cga_population: int = 128
+    model_population: int = 64
+    budget: int = DEFAULT_BUDGET
+    perturb_prob: float = 0.25
+    perturb_reps: int = 50
+    cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
+    model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
+
+    def cga_config(self) -> cga.CGAConfig:
+        return replace(self.cga, population=self.cga_population, budget=self.budget)
+
+    def model_config(self) -> model_ga.ModelGAConfig:
+        return replace(self.model, population=self.model_population, budget=self.budget)
+
+
+@dataclass
+class PALState:
+    """Everything a PAL run carries from one punctuation to the next (enough to resume)."""
+
+    generation: int
+    cga_pop: np.ndarray  # (P, 9, 2), best on the current model first
+    models: np.ndarray  # (M, 32, 3), best first
+    model_effects: tuple
+    operational: np.ndarray  # (9, 2), the robot's current turn cycle
+    operational_score: int | None  # its coverage score on the robot (None: not tested yet)
+    operational_fitness: int | None
+
+
+def initial_state(
+    model: GaitTable,
+    rng: np.random.Generator,
+    cfg: PALConfig = PALConfig(),
+    cga_pop: np.ndarray | None = None,
+) -> PALState:
+    """Models perturbed from ``model``; the CGA population given (e.g. the final population of a
+    long run on the model) or random, sorted best first on the model."""
+    mcfg = cfg.model_config()
+    models = model_ga.perturbed_population(model.rows, cfg.model_population, rng, mcfg.scale)
+    if cga_pop is None:
+        cga_pop = cga.random_population(rng, cfg.cga_population)
+    fit = cga.fitness(model.rows, cga_pop, cfg.budget, model.effects)
+    cga_pop = cga_pop[np.argsort(-fit, kind="stable")]
+    return PALState(0, cga_pop, models, tuple(model.effects), cga_pop[0].copy(), None, None)
+
+
+def perturbations(best: np.ndarray, rng: np.random.Generator, cfg: PALConfig) -> np.ndarray:
+    """The paper's two test perturbations of the best turn cycle: +-1 on each non-zero
+    repetition count; and each gene, with probability 0.25, set to 50 repetitions."""
+    a = best.copy()
+    nz = a[:, 1] > 0
+    a[nz, 1] = np.clip(a[nz, 1] + rng.choice([-1, 1], size=int(nz.sum())), 0, MAX_REPS)
+    b = best.copy()
+    b[rng.random(len(b)) < cfg.perturb_prob, 1] = cfg.perturb_reps
+    return np.stack([a, b])
+
+
+def punctuate(
+    state: PALState, robot: Robot, rng: np.random.Generator, cfg: PALConfig = PALConfig()
+) -> tuple[PALState, dict]:
+    """One punctuation: test on the robot, update the operational solution, evolve the models.
+
+    Returns the new state and a JSON-ready record of what happened.
+    """
+    best = state.cga_pop[0]
+    tests = np.concatenate([best[None], perturbations(best, rng, cfg)])
+    model_rows = state.models[0]
+    predicted = simulate(model_rows, tests, cfg.budget, state.model_effects)
+    results = robot.run_tests(tests)
+    observed = np.array([[r.blocks_covered, r.blocks_covered_once] for r in results])
+
+    replaced = state.operational_score is None or results[0].score > state.operational_score
+    if replaced:
+        operational, op_score, op_fit = best.copy(), results[0].score, results[0].fitness
+    else:
+        operational = state.operational
+        op_score, op_fit = state.operational_score, state.operational_fitness
+
+    error_before = model_ga.model_fitness(state.models[:1], tests, observed, cfg.budget,
+                                          state.model_effects)[0]
+    models, errors = model_ga.evolve(
+        state.models, tests, observed, cfg.model_generations, rng, cfg.method,
+        cfg.model_config(), state.model_effects,
+    )
+    record = {
+        "generation": state.generation,
+        "method": cfg.method,
+        "tests": [format_turn_cycle(t) for t in tests],
+        "observed": [r.figures() for r in results],
+        "predicted": [
+            {"blocks_covered": int(c), "blocks_covered_once": int(o), "fitness": int(f)}
+            for c, o, f in zip(predicted.blocks_covered, predicted.blocks_covered_once,
+                               predicted.fitness, strict=True)
+        ],
+        "model_error_before": int(error_before),
+        "model_error_after": int(errors[0]),
+        "used_gait_ids": model_ga.used_gait_ids(tests).tolist(),
+        "operational": format_turn_cycle(operational),
+        "operational_fitness": int(op_fit),
+        "operational_replaced": bool(replaced),
+    }
+    new = PALState(state.generation, state.cga_pop, models, state.model_effects, operational,
+                   op_score, op_fit)
+    return new, record
+
+
+def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
+                cfg: PALConfig = PALConfig()) -> tuple[PALState, int]:
+    """Run the CGA on the current best model; returns the state and the best model fitness."""
+    pop, best = cga.evolve(state.models[0], state.cga_pop, generations, rng, cfg.cga_config(),
+                           state.model_effects)
+    state = replace(state, cga_pop=pop, generation=state.generation + generations)
+    return state, int(fitness_of_score(best[-1])) if len(best) else 0
+
+
+def run(
+    state: PALState,
+    robot: Robot,
+    rng: np.random.Generator,
+    cfg: PALConfig = PALConfig(),
+    on_punctuation: Callable[[PALState, dict], None] | None = None,
+) -> PALState:
+    """Punctuations at generation 0, ``interval``, ... up to ``cfg.generations``, with CGA
+    generations between them. ``on_punctuation`` sees each record as it happens (to log it)."""
+    while True:
+        state, record = punctuate(state, robot, rng, cfg)
+        if on_punctuation is not None:
+            on_punctuation(state, record)
+        if state.generation >= cfg.generations:
+            return state
+        step = min(cfg.interval, cfg.generations - state.generation)
+        state, _ = advance_cga(state, step, rng, cfg)
+
+
+def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
+    """Everything needed to resume a PAL run exactly: the state and the generator's state.
+
+    Floats go through JSON's shortest round-trip representation, so a resumed run continues
+    bit for bit.
+    """
+    return {
+        "format": "pac-pal-state/1",
+        "generation": state.generation,
+        "cga_pop": state.cga_pop.tolist(),
+        "models": state.models.tolist(),
+        "model_effects": [e.to_json() for e in state.model_effects],
+        "operational": state.operational.tolist(),
+        "operational_score": state.operational_score,
+        "operational_fitness": state.operational_fitness,
+        "rng": rng.bit_generator.state,
+    }
+
+
+def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
+    """Inverse of :func:`state_to_json`."""
+    from pac_host.model.effects import effect_from_json
+
+    if not isinstance(doc, dict) or doc.get("format") != "pac-pal-state/1":
+        raise InputError("not a pac-pal-state/1 document")
+    try:
+        rng = np.random.default_rng()
+        rng.bit_generator.state = doc["rng"]
+        state = PALState(
+            int(doc["generation"]),
+            np.array(doc["cga_pop"], dtype=np.int64),
+            np.array(doc["models"], dtype=np.float64),
+            tuple(effect_from_json(e) for e in doc["model_effects"]),
+            np.array(doc["operational"], dtype=np.int64),
+            doc["operational_score"],
+            doc["operational_fitness"],
+        )
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"PAL state is incomplete or malformed ({e})") from None
+    return state, rng
