@@ -5,6 +5,7 @@ from __future__ import annotations
 import matplotlib.image as mpimg
 import pytest
 from click.testing import CliRunner
+
 from pac_sim.pbasic.trace_plot import main, plot_pulses
 
 SWEEP = ("k VAR Byte\nw VAR Word\nEND\n"

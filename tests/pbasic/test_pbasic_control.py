@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+
 from pac_sim.pbasic import PbasicRuntimeError, Stamp
 
 EXPECTED = (

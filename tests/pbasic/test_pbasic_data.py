@@ -3,21 +3,12 @@
 from __future__ import annotations
 
 import pytest
-from pac_sim.pbasic import PbasicSyntaxError
 
-PROGRAM = (
-    "Table  DATA 1, 2, Word 1000, \"Hi\"\n"
-    "Zeros  DATA 0(3)\n"
-    "Marks  DATA Word $1234(2)\n"
-    "Gap    DATA (2)\n"
-    "After  DATA @100, 7\n"
-    "Link   DATA Table, Word After\n"
-    "Size   CON Zeros - Table\n"
-)
+from pac_sim.pbasic import PbasicSyntaxError, Stamp
 
 
-def test_data_labels_and_bytes(stamp):
-    s = stamp(PROGRAM + "END\n")
+def test_data_labels_and_bytes(programs):
+    s = Stamp.from_file(programs / "data_layout.bs2")
     img = s.eeprom.mem
     assert list(img[0:6]) == [1, 2, 1000 & 0xFF, 1000 >> 8, ord("H"), ord("i")]
     assert list(img[6:9]) == [0, 0, 0]
@@ -29,9 +20,9 @@ def test_data_labels_and_bytes(stamp):
     assert sym.con_value["SIZE"] == 6
 
 
-def test_read_and_write_words(run):
-    s = run(PROGRAM + "a VAR Byte\nb VAR Byte\nw VAR Word\nv VAR Word\n"
-            "READ Table, a, b, Word w\nWRITE 200, Word 54321, 9\nREAD 200, Word v\nEND\n")
+def test_read_and_write_words(programs):
+    s = Stamp.from_file(programs / "data_layout.bs2")
+    assert s.run_for(1) == "ended"
     assert (s.var("a"), s.var("b"), s.var("w"), s.var("v")) == (1, 2, 1000, 54321)
     assert s.eeprom.mem[202] == 9
     assert s.eeprom.writes[200] == s.eeprom.writes[201] == 1
@@ -53,9 +44,7 @@ def test_data_past_eeprom_is_an_error(stamp):
         stamp("DATA @2047, Word 5\n")
 
 
-def test_tokenizer_image_must_agree_with_data(stamp):
-    from pac_sim.pbasic import Stamp
-
+def test_tokenizer_image_must_agree_with_data():
     src = "' {$STAMP BS2}\n' {$PBASIC 2.5}\nDATA 5, 6\nEND\n"
     good = bytearray(2048)
     good[0:2] = b"\x05\x06"

@@ -11,6 +11,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+
 from pac_sim.pbasic import Stamp
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "servobot.bs2"

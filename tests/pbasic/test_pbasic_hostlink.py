@@ -10,6 +10,7 @@ import tty
 
 import pytest
 import serial
+
 from pac_sim.pbasic import Stamp
 from pac_sim.pbasic.hostlink import FdLink, serve
 

@@ -11,6 +11,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+
 from pac_sim.pbasic import PbasicSyntaxError, Stamp
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -67,20 +68,10 @@ def test_firmware_agrees(tmp_path):
     Stamp.from_file(FIRMWARE, eeprom_image=bytes.fromhex(image["eeprom"]))
 
 
-def test_data_layout_agrees(tmp_path):
-    from test_pbasic_data import PROGRAM
-
-    src = tmp_path / "data.bs2"
-    src.write_text(HEADER + PROGRAM + "x VAR Word\ny VAR Nib\nz VAR Bit\nEND\n")
-    check_same(src, tmp_path)
-
-
-def test_error_lines_agree(tmp_path):
+def test_error_lines_agree(tmp_path, error_cases):
     """Where the tokenizer rejects a program of the error tests, we reject it on the same line."""
-    from test_pbasic_errors import CASES
-
     compared = 0
-    for i, (body, _, _) in enumerate(CASES):
+    for i, (body, _, _) in enumerate(error_cases):
         src = tmp_path / f"e{i}.bs2"
         src.write_text(HEADER + body)
         theirs = tokenize(src, tmp_path)
