@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
-from pac_sim.pbasic import PbasicSyntaxError, Stamp
+from pac_sim.pbasic import PbasicRuntimeError, PbasicSyntaxError, Stamp
 
 
 def test_data_labels_and_bytes(programs):
@@ -54,3 +56,29 @@ def test_tokenizer_image_must_agree_with_data():
     good[1] = 7
     with pytest.raises(ValueError, match="differs from the DATA at address 1"):
         Stamp.from_source(src, "t.bs2", eeprom_image=bytes(good))
+
+
+def test_write_into_the_program_is_an_error():
+    src = "' {$STAMP BS2}\nx VAR Byte\nWRITE 100, 1\nWRITE 1990, 2\nEND\n"
+    s = Stamp.from_source(src, "w.bs2", program_start=1900)
+    with pytest.raises(PbasicRuntimeError, match=r"w\.bs2:4: WRITE to EEPROM address 1990 overwr"):
+        s.run_for(1)
+    assert s.eeprom.mem[100] == 1 and s.eeprom.mem[1990] == 0
+
+
+def test_read_image_rejects_a_bad_file(tmp_path):
+    from pac_host.errors import InputError
+    from pac_sim.pbasic.image import read_image
+
+    bad = tmp_path / "x.json"
+    bad.write_text("{}")
+    with pytest.raises(InputError, match="x.json: not a tokenizer image"):
+        read_image(bad)
+    bad.write_text(json.dumps({"eeprom": "00", "eeprom_flags": "00"}))
+    with pytest.raises(InputError, match="must be 2048 bytes"):
+        read_image(bad)
+    good = bytearray(2048)
+    flags = bytearray(2048)
+    flags[2000:] = b"\x83" * 48
+    bad.write_text(json.dumps({"eeprom": good.hex(), "eeprom_flags": flags.hex()}))
+    assert read_image(bad)["program_start"] == 2000

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from pac_sim.pbasic import PbasicSyntaxError, Stamp
+from pac_sim.pbasic.image import read_image
 
 ROOT = Path(__file__).resolve().parents[2]
 TOKENIZE = ROOT / "firmware" / "tools" / "tokenize.js"
@@ -64,8 +65,11 @@ def test_firmware_agrees(tmp_path):
     if not FIRMWARE.exists():
         pytest.skip("no firmware/servobot.bs2 in this checkout")
     check_same(FIRMWARE, tmp_path)
-    image = tokenize(FIRMWARE, tmp_path)
-    Stamp.from_file(FIRMWARE, eeprom_image=bytes.fromhex(image["eeprom"]))
+    kw = read_image(tmp_path / "servobot.json")
+    s = Stamp.from_file(FIRMWARE, **kw)  # checks the image holds the same DATA bytes
+    assert max(s.program.symbols.data_used) < kw["program_start"] < 2048
+    assert s.eeprom.mem[kw["program_start"]:] == kw["eeprom_image"][kw["program_start"]:]
+    s.run_until_serin(2.0)
 
 
 def test_error_lines_agree(tmp_path, error_cases):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from . import clock
 from .compiler import Compiled, Compiler, SerinSpec
-from .errors import StampEnded, StampNotListening
+from .errors import PbasicRuntimeError, StampEnded, StampNotListening
 from .parser import parse
 from .peripherals import (
     EEPROM_SIZE,
@@ -55,7 +55,7 @@ class Stamp:
     """One BS2 running one program. Build with ``Stamp.from_source`` or ``Stamp.from_file``."""
 
     def __init__(self, stmts: list, filename: str = "<source>",
-                 eeprom_image: bytes | None = None) -> None:
+                 eeprom_image: bytes | None = None, program_start: int | None = None) -> None:
         self.ram = [0] * 16
         self.stack: list[int] = []
         self.inputs = 0  # levels driven onto the pins from outside (bit per pin)
@@ -76,6 +76,7 @@ class Stamp:
             self._check_image(eeprom_image)
             image = eeprom_image
         self.eeprom.mem[:] = image
+        self.program_start = program_start  # first EEPROM byte of the program's tokens
         self.pc = 0
 
     @classmethod
@@ -331,7 +332,12 @@ class Stamp:
 
     def eeprom_write(self, addr: int, data: bytes, nxt: int) -> int:
         for i, b in enumerate(data):
-            self.eeprom.write(addr + i, b)
+            a = (addr + i) % EEPROM_SIZE
+            if self.program_start is not None and a >= self.program_start:
+                raise PbasicRuntimeError(self.filename, self.line_at(),
+                                         f"WRITE to EEPROM address {a} overwrites the program "
+                                         f"(its tokens start at {self.program_start})")
+            self.eeprom.write(a, b)
         self.extra_us += clock.WRITE_US * len(data)
         return nxt
 
