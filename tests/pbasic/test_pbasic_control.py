@@ -73,3 +73,22 @@ def test_exit_leaves_only_the_inner_loop(run):
     s = run("i VAR Byte\nj VAR Byte\nn VAR Byte\nFOR i = 1 TO 3\n  FOR j = 1 TO 10\n"
             "    IF j = 2 THEN EXIT\n    n = n + 1\n  NEXT\nNEXT\nEND\n")
     assert s.var("n") == 3
+
+
+def test_reset_starts_over_with_cleared_ram_and_kept_eeprom(stamp):
+    s = stamp("n VAR Byte\nc VAR Byte\nREAD 0, c\nc = c + 1\nWRITE 0, c\n"
+              "DO\n  n = n + 1\n  PAUSE 10\nLOOP\n")
+    s.run_for(0.1)
+    assert s.var("n") > 5 and s.var("c") == 1
+    t = s.now_us
+    s.reset()
+    assert s.var("n") == 0 and s.now_us == t
+    s.run_for(0.05)
+    assert s.var("c") == 2 and s.eeprom.writes[0] == 2  # the boot count survived the reset
+
+
+def test_missing_file_is_an_input_error(tmp_path):
+    from pac_host.errors import InputError
+
+    with pytest.raises(InputError, match="nope.bs2: cannot read"):
+        Stamp.from_file(tmp_path / "nope.bs2")

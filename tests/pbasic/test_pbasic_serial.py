@@ -94,3 +94,21 @@ def test_debug_is_captured_not_printed(run, capsys):
     s = run("x VAR Byte\nx = 7\nDEBUG \"x=\", DEC x, CR, DEC ? x\nEND\n")
     assert s.debug_text == "x=7\rx = 7\r"
     assert capsys.readouterr().out == ""
+
+
+def test_serin_number_formats_skip_and_waitstr(stamp):
+    s = stamp("key VAR Byte(3)\na VAR Word\nb VAR Word\nc VAR Word\nd VAR Word\ne VAR Word\n"
+              "key(0) = \"K\"\nkey(1) = \"Y\"\n"
+              "SERIN 2, 84, [WAITSTR key\\2, SKIP 2, HEX a, BIN b, SDEC c, DEC2 d, IHEX e]\nEND\n")
+    s.run()
+    s.feed(b"xKKYzz1f;101 x-42!12345 q$FF.", pin=2)
+    assert s.run() == "ended"
+    assert [s.var(v) for v in "abcde"] == [0x1F, 5, 0x10000 - 42, 12, 0xFF]
+
+
+def test_serin_without_timeout_waits_for_ever_in_silence(stamp):
+    s = stamp("x VAR Byte\nSERIN 1, 84, [x]\nEND\n")
+    assert s.run_for(3.0) == SERIN
+    assert s.now_us >= 3_000_000
+    s.feed(b"!", pin=1)
+    assert s.run() == "ended" and s.var("x") == ord("!")

@@ -52,3 +52,10 @@ def test_serin_completes_at_the_last_stop_bit(stamp):
     s.run()
     assert s.now_us >= 1000 + 2 * byte_us(84)
     assert (s.var("a"), s.var("b")) == (ord("x"), ord("y"))
+
+
+def test_nap_and_sleep_take_their_time(run):
+    s = run("NAP 2\nEND\n")
+    assert s.now_us == 18_000 * 4 + 2 * INSTRUCTION_US
+    s = run("SLEEP 2\nEND\n")
+    assert s.now_us == 2_000_000 + 2 * INSTRUCTION_US

@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from pac_host.errors import InputError
+
 from . import clock
 from .compiler import Compiled, Compiler, SerinSpec
 from .errors import PbasicRuntimeError, StampEnded, StampNotListening
@@ -86,16 +88,31 @@ class Stamp:
 
     @classmethod
     def from_file(cls, path: str | Path, **kw) -> Stamp:
-        p = Path(path)
-        return cls.from_source(p.read_text(encoding="latin-1"), str(path), **kw)
+        """Parse and compile a PBASIC source file (read as Latin-1, as the editor saves it)."""
+        try:
+            text = Path(path).read_text(encoding="latin-1")
+        except OSError as e:
+            raise InputError(f"{path}: cannot read: {e.strerror}") from None
+        return cls.from_source(text, str(path), **kw)
 
     def _check_image(self, image: bytes) -> None:
         if len(image) != EEPROM_SIZE:
-            raise ValueError(f"tokenizer image must be {EEPROM_SIZE} bytes, got {len(image)}")
+            raise InputError(f"tokenizer image must be {EEPROM_SIZE} bytes, got {len(image)}")
         for addr in sorted(self.program.symbols.data_used):
             if image[addr] != self.program.data_image[addr]:
-                raise ValueError(f"tokenizer image differs from the DATA at address {addr}: "
+                raise InputError(f"tokenizer image differs from the DATA at address {addr}: "
                                  f"{image[addr]} != {self.program.data_image[addr]}")
+
+    def reset(self) -> None:
+        """Reset as the BS2 does (power glitch, DTR): RAM cleared, program from the top; the
+        EEPROM keeps what was written, Stamp time and the recorded traces go on."""
+        self.ram[:] = [0] * len(self.ram)
+        self.stack.clear()
+        self.session = None
+        self.state = READY
+        self.halted_by = None
+        self.pc = 0
+        self.io_sync()
 
     # ---- clock ----
     @property
@@ -275,6 +292,8 @@ class Stamp:
                 if s.deadline is not None and (quiet_until is None or s.deadline <= quiet_until):
                     self._finish_serin(s.deadline, s.spec.tlabel.pos)
                     return True
+                if quiet_until is not None:  # waited in silence until then
+                    self._set_time(max(self.now_us, quiet_until))
                 return False
             end, b = got
             s.t = end
