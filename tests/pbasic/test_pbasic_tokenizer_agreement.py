@@ -86,3 +86,22 @@ def test_error_lines_agree(tmp_path, error_cases):
         assert exc.value.line == theirs["error_line"], (body, theirs["message"])
         compared += 1
     assert compared >= 20
+
+
+def program_tokens(image: dict) -> bytes:
+    eeprom = bytes.fromhex(image["eeprom"])
+    flags = bytes.fromhex(image["eeprom_flags"])
+    return bytes(eeprom[a] for a in range(len(eeprom)) if flags[a] & 3 == 3)
+
+
+@pytest.mark.parametrize(("decl", "high", "same", "other"),
+                         [("Word", "HIGHNIB", "NIB3", "NIB1"), ("Byte", "HIGHBIT", "BIT7", "BIT6")])
+def test_high_modifiers_compile_like_the_tokenizer(tmp_path, decl, high, same, other):
+    """The tokenizer emits the same tokens for v.HIGHNIB as for the part we resolve it to."""
+    tokens = {}
+    for mod in (high, same, other):
+        src = tmp_path / f"m_{mod}.bs2"
+        src.write_text(HEADER + f"v VAR {decl}\nh VAR v.{mod}\nh = 1\n")
+        tokens[mod] = program_tokens(tokenize(src, tmp_path))
+        Stamp.from_file(src)
+    assert tokens[high] == tokens[same] != tokens[other]

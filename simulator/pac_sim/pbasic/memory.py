@@ -45,24 +45,19 @@ def predefined_locations() -> dict[str, Loc]:
 
 def modifier(loc_size: int, name: str) -> tuple[int, int] | None:
     """(bit offset, size) of a modifier such as HIGHBYTE or BIT3 within a variable of loc_size
-    bits, or None when the modifier does not fit in the variable."""
-    if name in ("LOWBYTE", "BYTE0"):
-        delta, size = 0, 8
-    elif name in ("HIGHBYTE", "BYTE1"):
-        delta, size = 8, 8
-    elif name == "LOWNIB":
-        delta, size = 0, 4
-    elif name == "HIGHNIB":
-        delta, size = 4, 4
-    elif name.startswith("NIB"):
-        delta, size = 4 * int(name[3:]), 4
-    elif name == "LOWBIT":
-        delta, size = 0, 1
-    elif name == "HIGHBIT":
-        delta, size = loc_size - 1, 1
-    else:  # BITn
-        delta, size = int(name[3:]), 1
-    if delta + size > loc_size:
+    bits, or None when it does not fit. As the tokenizer has it: a modifier names a strictly
+    smaller part, and HIGHBYTE/HIGHNIB/HIGHBIT are the top part of the variable they modify
+    (a Word's HIGHNIB is NIB3, a Byte's is NIB1)."""
+    kind = name[:3] if name.startswith(("BIT", "NIB")) and name[3:].isdigit() else name
+    size = {"LOWBYTE": 8, "HIGHBYTE": 8, "BYTE0": 8, "BYTE1": 8, "LOWNIB": 4, "HIGHNIB": 4,
+            "NIB": 4, "LOWBIT": 1, "HIGHBIT": 1, "BIT": 1}[kind]
+    if name.startswith("HIGH"):
+        delta = loc_size - size
+    elif kind in ("BIT", "NIB"):
+        delta = int(name[3:]) * size
+    else:
+        delta = 8 if name == "BYTE1" else 0
+    if size >= loc_size or delta + size > loc_size:
         return None
     return delta, size
 
