@@ -105,3 +105,59 @@ def test_high_modifiers_compile_like_the_tokenizer(tmp_path, decl, high, same, o
         tokens[mod] = program_tokens(tokenize(src, tmp_path))
         Stamp.from_file(src)
     assert tokens[high] == tokens[same] != tokens[other]
+
+
+LAYOUT = """a VAR Bit
+b VAR Nib
+c VAR Byte(3)
+d VAR Word
+e VAR Bit(5)
+f VAR Nib
+g VAR Word(2)
+h VAR Byte
+al VAR g.HIGHBYTE
+an VAR c.NIB1
+ab VAR d.BIT9
+aa VAR al
+"""
+
+
+def equivalent(off: int, size: int) -> str:
+    """The predefined-name spelling of a RAM bit range (W/B plus a modifier)."""
+    k, bit = divmod(off - 48, 8)
+    if size == 16:
+        return f"W{k // 2}"
+    if size == 8:
+        return f"B{k}"
+    return f"B{k}.NIB{bit // 4}" if size == 4 else f"B{k}.BIT{bit}"
+
+
+def check_layout(decls: str, tmp_path: Path) -> int:
+    """Tokens of `v = 1` for every variable equal those of its W/B equivalent: the tokenizer
+    put each variable where we did."""
+    probe = tmp_path / "probe.bs2"
+    probe.write_text(HEADER + decls)
+    sym = Stamp.from_file(probe).program.symbols
+    names = [n for n in sym.where if sym.kind[n] == "var"]
+    ours = "".join(f"{n} = 1\n" for n in names)
+    theirs = "".join(f"{equivalent(sym.vars[n].off, sym.vars[n].size)} = 1\n" for n in names)
+    out = []
+    for tag, body in (("ours", ours), ("theirs", theirs)):
+        src = tmp_path / f"layout_{tag}.bs2"
+        src.write_text(HEADER + decls + body)
+        out.append(program_tokens(tokenize(src, tmp_path)))
+    assert out[0] == out[1]
+    return len(names)
+
+
+def test_ram_layout_matches_the_tokenizer(tmp_path):
+    assert check_layout(LAYOUT, tmp_path) == 12
+
+
+def test_firmware_ram_layout_matches_the_tokenizer(tmp_path):
+    if not FIRMWARE.exists():
+        pytest.skip("no firmware/servobot.bs2 in this checkout")
+    lines = FIRMWARE.read_text(encoding="latin-1").splitlines()
+    decls = "".join(line.split("'")[0] + "\n" for line in lines
+                    if " VAR " in line.split("'")[0].upper())
+    assert check_layout(decls, tmp_path) >= 20
