@@ -108,6 +108,8 @@ def test_byte_and_nib_truncate(run):
         ("a - b", True),  # non-zero counts as true
         ("a - 7", False),
         ("a = 1 OR b = 1 OR a + b = 16", True),
+        ("a = 7 OR b = 1 AND b = 8", False),  # left to right: (a = 7 OR b = 1) AND b = 8
+        ("b = 8 AND a = 1 OR a = 7", True),
     ],
 )
 def test_conditions(run, cond, taken):

@@ -161,3 +161,52 @@ def test_firmware_ram_layout_matches_the_tokenizer(tmp_path):
     decls = "".join(line.split("'")[0] + "\n" for line in lines
                     if " VAR " in line.split("'")[0].upper())
     assert check_layout(decls, tmp_path) >= 20
+
+
+DECLS = "x VAR Word\ny VAR Word\na VAR Byte\nb VAR Byte\nc VAR Byte\n"
+# (statement, explicit grouping): the tokenizer emits the same tokens for both
+SAME = [
+    ("x = y + 3 * 4", "x = (y + 3) * 4"),
+    ("x = -y + 10", "x = (-y) + 10"),
+    ("x = ABS y + 1", "x = (ABS y) + 1"),
+    ("x = y MAX 1 * 3", "x = (y MAX 1) * 3"),
+    ("IF x + 1 > 5 AND y = 2 THEN x = 1", "IF ((x + 1) > 5) AND (y = 2) THEN x = 1"),
+    ("IF NOT x = 1 AND y = 2 THEN x = 1", "IF (NOT (x = 1)) AND (y = 2) THEN x = 1"),
+    ("IF a = 1 OR b = 1 AND c = 1 THEN x = 1", "IF ((a = 1) OR (b = 1)) AND (c = 1) THEN x = 1"),
+    ("IF a = 1 AND b = 1 XOR c = 1 THEN x = 1", "IF ((a = 1) AND (b = 1)) XOR (c = 1) THEN x = 1"),
+]
+# ... and different tokens for these other groupings
+DIFFERENT = [
+    ("x = y + 3 * 4", "x = y + (3 * 4)"),
+    ("IF a = 1 OR b = 1 AND c = 1 THEN x = 1", "IF (a = 1) OR ((b = 1) AND (c = 1)) THEN x = 1"),
+]
+
+
+def tokens_of(body: str, tmp_path: Path, tag: str) -> bytes:
+    src = tmp_path / f"g_{tag}.bs2"
+    src.write_text(HEADER + DECLS + body + "\n")
+    return program_tokens(tokenize(src, tmp_path))
+
+
+def results(body: str) -> list[int]:
+    """x after running body for a grid of a, b, c, y values, in the interpreter."""
+    out = []
+    for a, b, c, y in [(1, 1, 1, 4), (1, 0, 1, 2), (0, 1, 1, 7), (1, 1, 0, 0), (0, 0, 0, 9),
+                       (1, 0, 0, 3), (0, 1, 0, 65535), (0, 0, 1, 1)]:
+        s = Stamp.from_source(HEADER + DECLS + f"a = {a}\nb = {b}\nc = {c}\ny = {y}\n{body}\n",
+                              "g.bs2")
+        s.run_for(1)
+        out.append(s.var("x"))
+    return out
+
+
+def test_grouping_agrees_with_the_tokenizer(tmp_path):
+    plain = "\n".join(p for p, _ in SAME)
+    grouped = "\n".join(g for _, g in SAME)
+    assert tokens_of(plain, tmp_path, "plain") == tokens_of(grouped, tmp_path, "grouped")
+    for i, (p, g) in enumerate(DIFFERENT):
+        assert tokens_of(p, tmp_path, f"p{i}") != tokens_of(g, tmp_path, f"g{i}")
+    for p, g in SAME:  # and the interpreter evaluates each pair alike
+        assert results(p) == results(g), p
+    p, g = DIFFERENT[1]
+    assert results(p) != results(g)

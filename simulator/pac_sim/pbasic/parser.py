@@ -2,7 +2,8 @@
 
 Expressions follow the Stamp: arithmetic strictly left to right with no precedence (unary
 operators bind to the operand that follows them), parentheses group; in conditions the
-comparisons bind looser than arithmetic and NOT > AND > OR/XOR bind looser still.
+comparisons bind looser than arithmetic, NOT applies to one comparison, and AND, OR, XOR
+combine them left to right with no precedence among them (checked against the tokenizer).
 Any keyword outside the supported subset is an error naming the line.
 """
 
@@ -120,17 +121,12 @@ class Parser:
 
     # ---- expressions ----
     def condition(self):
-        left = self.and_expr()
-        while self.tok.is_name("OR", "XOR"):
-            op = self.advance().value
-            left = S.Binary(op, left, self.and_expr())
-        return left
-
-    def and_expr(self):
+        """Logical operators AND, OR, XOR: one level, left to right (as the tokenizer groups
+        them: ``a OR b AND c`` is ``(a OR b) AND c``)."""
         left = self.not_expr()
-        while self.tok.is_name("AND"):
-            self.advance()
-            left = S.Binary("AND", left, self.not_expr())
+        while self.tok.is_name("AND", "OR", "XOR"):
+            op = self.advance().value
+            left = S.Binary(op, left, self.not_expr())
         return left
 
     def not_expr(self):
