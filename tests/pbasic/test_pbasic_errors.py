@@ -46,3 +46,10 @@ def test_syntax_error_is_an_input_error():
 
     with pytest.raises(InputError):
         Stamp.from_source("' {$STAMP BS2}\nGOTO\n", "e.bs2")
+
+
+@pytest.mark.parametrize("eol", ["\n", "\r\n", "\r"])
+def test_line_endings(eol):
+    src = eol.join(["' {$STAMP BS2}", "x VAR Byte", "x = 5", "y = 1", ""])
+    with pytest.raises(PbasicSyntaxError, match=r"e\.bs2:4: undefined symbol Y"):
+        Stamp.from_source(src, "e.bs2")

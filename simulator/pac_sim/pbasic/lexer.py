@@ -50,6 +50,7 @@ _TOKEN = re.compile(
 
 def tokenize(text: str, filename: str = "<source>") -> list[Token]:
     """Tokens of the whole source, ending with an ``eof`` token."""
+    text = text.replace("\r\n", "\n").replace("\r", "\n")  # the Stamp editor may save CR only
     out: list[Token] = []
     line = 1
     pos = 0
