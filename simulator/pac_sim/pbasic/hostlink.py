@@ -103,8 +103,8 @@ def serve(stamp: Stamp, link: ByteLink, *, pin: int = PROGRAMMING_PORT, factor: 
         data = link.read(wait_s)
         if data:
             waited_us = int((time.monotonic() - t0) / factor * 1e6) if factor > 0 else 0
-            if remaining is not None:
-                waited_us = min(waited_us, remaining)
+            if remaining is not None:  # it came inside the window: before the timeout fires
+                waited_us = min(waited_us, max(0, remaining - 1))
             if waited_us:
                 stamp.advance(waited_us)
             stamp.feed(data, pin=pin, echo=echo)
