@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import threading
 import tty
+from pathlib import Path
 
 import pytest
 import serial
@@ -83,3 +84,19 @@ def test_silent_host_gets_the_timeout_branch(served):
     s = Stamp.from_source(BUSY_THEN_LISTEN, "busy.bs2")
     start(s, factor=0.0, floor_s=0.05)
     assert port.read(3) == b"ABT"
+
+
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "servobot.bs2"
+
+
+@pytest.mark.skipif(not FIRMWARE.exists(), reason="no firmware/servobot.bs2 here")
+def test_firmware_answers_hello_over_the_pty(served):
+    start, port = served
+    start(Stamp.from_file(FIRMWARE), factor=0.0, floor_s=0.5, echo=True)
+    boot_ready = port.read(8 + 7)
+    assert boot_ready[3] == 0xC1 and boot_ready[8 + 3] == 0xC0  # BOOT, READY
+    hello = bytes.fromhex("A55A030101000000FA")
+    port.write(hello)
+    assert port.read(9) == hello  # the programming port's echo
+    reply = port.read(9)
+    assert reply[:5] == bytes.fromhex("A55A038101") and (sum(reply[2:]) & 0xFF) == 0xFF
