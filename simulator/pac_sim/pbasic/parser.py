@@ -38,8 +38,7 @@ STATEMENT_WORDS = {
     "DEBUG", "READ", "WRITE", "LOOKUP", "LOOKDOWN", "BRANCH", "ON", "NAP", "SLEEP", "DATA", "VAR",
     "CON", "PIN", "AND", "OR", "XOR", "NOT", "WAIT", "STR", "SKIP", "WAITSTR", "REP",
 }
-RESERVED = (STATEMENT_WORDS | UNSUPPORTED | SIZES | OUT_FORMATS | UNARY_OPS | BINARY_OPS
-            | {"ABS"})
+RESERVED = STATEMENT_WORDS | UNSUPPORTED | SIZES | OUT_FORMATS | UNARY_OPS | BINARY_OPS
 
 
 def _is_reserved(name: str) -> bool:
@@ -572,7 +571,7 @@ class Parser:
         if t.is_name("WAIT"):
             self.advance()
             self.expect_op("(")
-            values = self.byte_list(")")
+            values = self.byte_list()
             self.expect_op(")")
             if len(values) > 6:
                 raise self.error("WAIT takes at most 6 bytes on the BS2", t.line)
@@ -608,7 +607,7 @@ class Parser:
         self.advance()
         return base, digits
 
-    def byte_list(self, closer: str) -> list:
+    def byte_list(self) -> list:
         """Values for WAIT(...) / LOOKUP [...]: strings expand to their characters."""
         values: list = []
         while True:
@@ -636,9 +635,9 @@ class Parser:
         return S.Serout(line, pin, baud, pace, items)
 
     def stmt_debug(self, line: int) -> S.Debug:
-        return S.Debug(line, self.out_items(bracketed=False))
+        return S.Debug(line, self.out_items())
 
-    def out_items(self, bracketed: bool = True) -> list:
+    def out_items(self) -> list:
         items = [self.out_item()]
         while self.accept_op(","):
             items.append(self.out_item())
@@ -694,7 +693,7 @@ class Parser:
         index = self.expr()
         self.expect_op(",")
         self.expect_op("[")
-        values = self.byte_list("]")
+        values = self.byte_list()
         self.expect_op("]")
         self.expect_op(",")
         return S.Lookup(line, index, values, self.target())
@@ -706,7 +705,7 @@ class Parser:
         if self.tok.kind == "op" and self.tok.value in COMPARE_OPS:
             op = self.advance().value
         self.expect_op("[")
-        values = self.byte_list("]")
+        values = self.byte_list()
         self.expect_op("]")
         self.expect_op(",")
         return S.Lookdown(line, value, op, values, self.target())
