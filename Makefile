@@ -6,13 +6,14 @@ STAMP   := $(VENV)/.installed
 OUT     ?= out
 PYDIRS  := $(wildcard host protocol simulator tests bench)
 
-.PHONY: help venv test demo bench lint clean firmware
+.PHONY: help venv test demo bench lint sim clean firmware
 
 help:
 	@echo "make demo    run a short paper experiment on the built-in simulated robot"
 	@echo "make test    install into .venv and run the test suite"
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
 	@echo "make lint    ruff"
+	@echo "make sim     run the Stamp emulator on a pseudo-terminal (REALTIME=0 for full speed)"
 	@echo "make firmware  tokenize firmware/servobot.bs2 (Node.js), writing build/servobot.json and .bin"
 
 $(STAMP): pyproject.toml
@@ -40,10 +41,14 @@ test: $(STAMP) firmware
 	$(BIN)/python -m pytest
 
 demo: $(STAMP)
+	rm -rf $(OUT)/demo-experiment
 	$(BIN)/pac-host experiment --seeds 4 --generations 400 --methods full,partial --jobs 2 --out $(OUT)/demo-experiment
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py --out bench/results/bench.json
+
+sim: $(STAMP)
+	$(BIN)/pac-sim --realtime $(or $(REALTIME),1)
 
 lint: $(STAMP)
 	$(BIN)/ruff check $(PYDIRS)

@@ -116,3 +116,10 @@ def test_table_export_then_use(tmp_path):
     assert doc["effects"] == [{"name": "yaw_bias", "params": {"delta": 2.0}}]
     shown = _run(["table", "show", "--table", str(path)]).output
     assert "effect: yaw_bias:delta=2" in shown
+
+
+def test_simulate_draws_the_path(tmp_path):
+    png = tmp_path / "path.png"
+    res = _run(["simulate", "--turn-cycle", "12:14,3:10,12:3,19:10", "--plot", str(png)])
+    assert res.exit_code == 0
+    assert png.read_bytes()[:4] == b"\x89PNG" and png.stat().st_size > 10_000

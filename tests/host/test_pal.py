@@ -73,3 +73,24 @@ def test_pal_records_say_what_happened():
     assert rec["model_error_after"] <= rec["model_error_before"]
     assert set(rec["used_gait_ids"]) == {int(g.split(":")[0]) for t in rec["tests"]
                                          for g in t.split(",")}
+
+
+def test_state_round_trip_resumes_bit_for_bit():
+    import json
+
+    cfg = pal.PALConfig(**{**SMALL.__dict__, "generations": 120})
+    robot = pal.SimulatedRobot(shifted_table())
+    rng = np.random.default_rng(9)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    whole = []
+    pal.run(state, robot, rng, cfg, lambda s, r: whole.append(r))
+
+    rng = np.random.default_rng(9)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    state, first = pal.punctuate(state, robot, rng, cfg)
+    saved = json.loads(json.dumps(pal.state_to_json(state, rng)))  # through a file, as it were
+    state, rng = pal.state_from_json(saved)
+    state, _ = pal.advance_cga(state, cfg.interval, rng, cfg)
+    rest = []
+    pal.run(state, robot, rng, cfg, lambda s, r: rest.append(r))
+    assert [first] + rest == whole
