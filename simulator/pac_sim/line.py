@@ -21,6 +21,7 @@ import numpy as np
 
 from pac_protocol.frame import REQUEST_PAYLOAD, SYNC
 from pac_protocol.timing import BYTE_S
+from pac_sim.stamp_download import starts_download
 
 WAIT_PATTERN = SYNC + bytes([REQUEST_PAYLOAD])  # WAIT($A5, $5A, $03)
 REQUEST_TAIL = 3 + REQUEST_PAYLOAD  # CMD SEQ P0 P1 P2 CHK after the WAIT
@@ -30,6 +31,16 @@ IDLE_FLOOR_S = 0.05  # shortest real idle window: a silent host then costs 20 RE
 
 class Shutdown(Exception):
     """The emulator was asked to stop."""
+
+
+class DownloadStart(Exception):
+    """The host reset the Stamp into download mode (see :mod:`pac_sim.stamp_download`).
+
+    ``data`` holds the bytes received with the first identification byte, not yet echoed."""
+
+    def __init__(self, data: bytes) -> None:
+        super().__init__("download started")
+        self.data = data
 
 
 @dataclass(frozen=True)
@@ -78,6 +89,7 @@ class PtyLine:
         self.sent = 0
         self.received = 0
         self.lost = 0  # bytes that arrived while the Stamp was not listening
+        self._last_rx = time.monotonic()  # when the host last sent a byte
 
     # ---- faults -------------------------------------------------------------------------------
 
@@ -104,8 +116,9 @@ class PtyLine:
         except OSError:
             pass
 
-    def _read(self, timeout: float) -> bytes:
-        """Bytes from the host within ``timeout`` (echoed if pin 16), after line damage."""
+    def read_raw(self, timeout: float) -> bytes:
+        """Bytes from the host within ``timeout``, untouched: no echo, no damage, no reset
+        detection (the download protocol reads this way)."""
         if self._stopped.is_set():
             raise Shutdown
         r, _, _ = select.select([self.master, self._wake_r], [], [], max(0.0, timeout))
@@ -117,9 +130,26 @@ class PtyLine:
             data = os.read(self.master, 256)
         except (BlockingIOError, OSError):
             return b""
+        self._last_rx = time.monotonic()
+        return data
+
+    def _read(self, timeout: float) -> bytes:
+        """Bytes from the host within ``timeout`` (echoed if pin 16), after line damage.
+
+        Raises :class:`DownloadStart` when they begin a download (the host reset the Stamp)."""
+        before = self._last_rx
+        data = self.read_raw(timeout)
+        if not data:
+            return b""
+        if not self.faults.silent and starts_download(data[0], self._last_rx - before):
+            raise DownloadStart(data)  # a reset: whatever the firmware was doing ends here
         if self.echo and not self.faults.silent:
             self._write(data)
         return self._damage(data)
+
+    def write_raw(self, data: bytes) -> None:
+        """Bytes to the host, untouched and at once (the download protocol)."""
+        self._write(data)
 
     def _sleep(self, seconds: float) -> None:
         if seconds > 0 and self._stopped.wait(seconds):

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 from itertools import cycle, repeat
 from typing import Protocol
 
+from pac_host.stamp_image import TURN_CYCLE_ADDR, TURN_CYCLE_SIZE
 from pac_protocol.frame import REQUEST_PAYLOAD, check_value
 from pac_protocol.messages import (
     ACKS,
@@ -35,7 +36,8 @@ from pac_protocol.messages import (
 )
 from pac_protocol.timing import T_CYCLE_S, T_EEPROM_WRITE_S, T_IDLE_S, T_PROCESS_S, T_RUN_S
 from pac_sim.eeprom import Eeprom
-from pac_sim.line import Shutdown
+from pac_sim.line import DownloadStart, Shutdown
+from pac_sim.stamp_download import StampDownload, serve_download, servobot_eeprom
 from pac_sim.world import World
 
 FIRMWARE_VERSION = 1
@@ -78,6 +80,7 @@ class StampEmulator:
         self.boots = 0
         self.cycles_total = 0  # gait cycles since the emulator started, across resets
         self.executed: list[tuple[int, int]] = []  # (cmd, seq) of every request acted on
+        self.downloads: list[StampDownload] = []  # every download session, in order
         self._reset_pending = threading.Event()
         self._boot_state()
 
@@ -94,6 +97,8 @@ class StampEmulator:
         try:
             while True:
                 try:
+                    if self.firmware_version is None:
+                        self._foreign()
                     self._boot()
                     while True:
                         self._check_reset()
@@ -102,8 +107,35 @@ class StampEmulator:
                             self._dispatch(req)
                 except _Reset:
                     continue
+                except DownloadStart as d:
+                    self._flashed(serve_download(self.line, d.data, self._eeprom_image()))
         except Shutdown:
             return
+
+    # ---- being flashed (the BS2 download protocol, pac_sim.stamp_download) -------------------
+
+    def _eeprom_image(self) -> bytes:
+        return servobot_eeprom(self.firmware_version or 0, bytes(self.eeprom.image))
+
+    def _flashed(self, dl: StampDownload) -> None:
+        """After a download: run what was flashed. A completed download of the ServoBot firmware
+        sets the firmware version and the turn cycle from the image; anything else (another
+        program, or a download cut short after some packets) leaves no firmware that answers."""
+        self.downloads.append(dl)
+        if not dl.finished and not dl.packets:
+            return  # identification failed: nothing was written, the old program runs again
+        version = dl.firmware_version if dl.finished else None
+        self.firmware_version = version
+        if version is not None:
+            image = dl.eeprom[TURN_CYCLE_ADDR : TURN_CYCLE_ADDR + TURN_CYCLE_SIZE]
+            for addr, b in enumerate(image):
+                if self.eeprom.image[addr] != b:
+                    self.eeprom.write(addr, b)
+
+    def _foreign(self) -> None:
+        """A program that is not the ServoBot firmware: says nothing, until the next download."""
+        while True:
+            self.line.serin(T_IDLE_S, idle=True)
 
     def reset(self) -> None:
         """Press the reset button: takes effect at the Stamp's next step."""
