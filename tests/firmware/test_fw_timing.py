@@ -1,8 +1,9 @@
-"""The timing budget, recomputed from the firmware source and checked against firmware/README.md.
+"""The timing budget, measured in Stamp time by running the firmware source in the project's
+PBASIC interpreter, and checked against the table in firmware/README.md.
 
-Model (the BS2's published figures; no Stamp was timed): a PBASIC statement costs 0.25 ms
-(about 4000 statements/s); PULSOUT adds its pulse (2 us per unit); SEROUT takes 10 bits per
-byte at 9600 baud; a SERIN that hears nothing lasts its timeout.
+The interpreter's clock is the BS2's published rates (``pac_sim.pbasic.clock``): 250 us per
+instruction, PULSOUT adds its pulse (2 us per unit), SEROUT 1.04 ms per byte at 9600 baud, a
+SERIN that hears nothing lasts its timeout. No Stamp was timed.
 """
 
 from __future__ import annotations
@@ -11,65 +12,56 @@ import re
 
 import pytest
 from fw_build import FIRMWARE, SOURCE
-from fw_pbasic import Program, split_top, strip_comment
+from fw_stamp import PROGRAMMING_PORT, const, gait_cycle, lift_pins
 
-STATEMENT_MS = 0.25
-PULSE_UNIT_MS = 0.002
-BYTE_MS = 10 / 9600 * 1000
+from pac_protocol.messages import Step
+from pac_sim.pbasic import Stamp
+
 REFRESH_RANGE_MS = (15.0, 25.0)
+STRAIGHT = 15
 
 
-def section(prog: Program, label: str) -> list[str]:
-    """Statements from ``label:`` to the next label."""
-    start = next(i for i, ln in enumerate(prog.lines) if ln.lower() == f"{label.lower()}:")
-    out = []
-    for ln in prog.lines[start + 1 :]:
-        if re.match(r"^\w+:$", ln):
-            break
-        if ln:
-            out.append(ln)
-    return out
+def _diffs(ts: list[int]) -> list[int]:
+    return [b - a for a, b in zip(ts, ts[1:], strict=False)]
 
 
-def frame_bytes(statement: str) -> int:
-    return len(split_top(statement[statement.index("[") + 1 : statement.rindex("]")], ","))
-
-
-def budget(prog: Program) -> dict[str, float]:
-    refresh = []
-    cycles = []
+def budget(text: str) -> dict[str, float]:
+    s = Stamp.from_source(text, "servobot.bs2")
+    lifts = list(lift_pins(s))
+    refresh, cycles = [], []
     for g in range(32):
-        acts = prog.gait_cycle(g)
-        ms = [
-            a.statements * STATEMENT_MS + sum(w for _, w in a.pulses) * PULSE_UNIT_MS
-            for a in acts
-        ]
-        refresh += ms
-        cycles.append(sum(ms))
-    # between two gait cycles: the rest of Stride, then Listen up to and through its SERIN
-    stride = section(prog, "Stride")
-    after = stride[stride.index("GOSUB GaitCycle") + 1 : stride.index("GOSUB Listen") + 1]
-    listen = section(prog, "Listen")
-    before_serin = listen[: next(i for i, s in enumerate(listen) if s.startswith("SERIN")) + 1]
-    stmts = after + before_serin
-    serial_ms = sum(frame_bytes(s) * BYTE_MS for s in stmts if s.startswith("SEROUT"))
-    listen_ms = float(prog.consts["T_RUN"])
-    gap_ms = len(stmts) * STATEMENT_MS + serial_ms + listen_ms
+        n0, t0 = len(s.servo.pulses), s.now_us
+        acts = gait_cycle(s, g)
+        cycles.append(s.now_us - t0)
+        pulses = s.servo.pulses[n0:]
+        for pin in lifts:
+            refresh += _diffs([p.t_us for p in pulses if p.pin == pin])
+    # two gait cycles of a STEP with a silent host: the boundary between them
+    r = Stamp.from_source(text, "servobot.bs2")
+    r.run_until_serin(2.0)
+    r.output.take(PROGRAMMING_PORT)
+    r.feed(Step(STRAIGHT, 2).encode(1), echo=False)
+    w = r.run_until_serin(5.0)  # after gait cycle 1: CYCLE, READY(2), listening
+    listen_us = w.deadline_us - w.since_us
+    r.advance(w.deadline_us - r.now_us + 1)
+    r.run_until_serin(5.0)  # gait cycle 2, DONE, READY idle
+    lift0 = [p.t_us for p in r.servo.pulses if p.pin == lifts[0]]
+    n = len(acts)
     return {
-        "activations": len(prog.gait_cycle(15)),
-        "refresh_min_ms": min(refresh),
-        "refresh_max_ms": max(refresh),
-        "cycle_min_s": min(cycles) / 1000,
-        "cycle_max_s": max(cycles) / 1000,
-        "listen_ms": listen_ms,
-        "gap_ms": gap_ms,
-        "period_max_s": (max(cycles) + gap_ms) / 1000,
+        "activations": n,
+        "refresh_min_ms": min(refresh) / 1000,
+        "refresh_max_ms": max(refresh) / 1000,
+        "cycle_min_s": min(cycles) / 1e6,
+        "cycle_max_s": max(cycles) / 1e6,
+        "listen_ms": listen_us / 1000,
+        "gap_ms": max(_diffs(lift0)) / 1000,
+        "period_s": (lift0[n] - lift0[0]) / 1e6,
     }
 
 
 @pytest.fixture(scope="module")
 def figures() -> dict[str, float]:
-    return budget(Program(SOURCE.read_text(encoding="latin-1")))
+    return budget(SOURCE.read_text(encoding="latin-1"))
 
 
 def test_servo_refresh_within_15_to_25_ms_for_every_gait_id(figures):
@@ -79,17 +71,19 @@ def test_servo_refresh_within_15_to_25_ms_for_every_gait_id(figures):
 
 
 def test_listening_window_is_the_protocols_t_run(figures):
-    assert figures["listen_ms"] == 100.0
+    s = Stamp.from_file(SOURCE)
+    assert figures["listen_ms"] == const(s, "T_RUN") == 100
     assert figures["gap_ms"] > figures["listen_ms"]
+    assert figures["period_s"] * 1000 == pytest.approx(
+        figures["cycle_max_s"] * 1000 + figures["gap_ms"] - figures["refresh_max_ms"], rel=0.1)
 
 
 def readme_table() -> dict[str, str]:
     text = (FIRMWARE / "README.md").read_text()
-    rows = re.findall(r"^\|\s*`(\w+)`\s*\|[^|]*\|\s*([\d.]+)\s*\|", text, re.M)
-    return dict(rows)
+    return dict(re.findall(r"^\|\s*`(\w+)`\s*\|[^|]*\|\s*([\d.]+)\s*\|", text, re.M))
 
 
-def test_readme_documents_the_recomputed_budget(figures):
+def test_readme_documents_the_measured_budget(figures):
     table = readme_table()
     assert set(figures) <= set(table), sorted(set(figures) - set(table))
     for key, value in figures.items():
@@ -99,13 +93,9 @@ def test_readme_documents_the_recomputed_budget(figures):
 
 def test_budget_moves_with_the_source_constants():
     src = SOURCE.read_text(encoding="latin-1")
-    slower = src.replace("T_RUN           CON 100", "T_RUN           CON 250")
-    wider = re.sub(r"(LIFT_DOWN\s+CON )700", r"\g<1>900", src)
-    base = budget(Program(src))
-    assert budget(Program(slower))["gap_ms"] == pytest.approx(base["gap_ms"] + 150)
-    # raising LIFT_DOWN lengthens right lift pulses, shortens mirrored left ones: changes sums
-    assert budget(Program(wider))["refresh_max_ms"] != pytest.approx(base["refresh_max_ms"])
-
-
-def test_strip_comment_keeps_strings():
-    assert strip_comment("FwInfo DATA @0, \"S'B\", 1 ' tag") == "FwInfo DATA @0, \"S'B\", 1"
+    base = budget(src)
+    slower = budget(re.sub(r"^(T_RUN\s+CON )100", r"\g<1>250", src, flags=re.M))
+    assert slower["listen_ms"] == 250
+    assert slower["gap_ms"] == pytest.approx(base["gap_ms"] + 150)
+    longer = budget(re.sub(r"^(LIFT_DOWN\s+CON )700", r"\g<1>720", src, flags=re.M))
+    assert longer["refresh_max_ms"] != pytest.approx(base["refresh_max_ms"])
