@@ -133,15 +133,18 @@ class PtyLine:
         self._last_rx = time.monotonic()
         return data
 
-    def _read(self, timeout: float) -> bytes:
+    def _read(self, timeout: float, downloads: bool = True) -> bytes:
         """Bytes from the host within ``timeout`` (echoed if pin 16), after line damage.
 
-        Raises :class:`DownloadStart` when they begin a download (the host reset the Stamp)."""
+        Raises :class:`DownloadStart` when they begin a download (the host reset the Stamp),
+        unless ``downloads`` is False."""
         before = self._last_rx
         data = self.read_raw(timeout)
         if not data:
             return b""
-        if not self.faults.silent and starts_download(data[0], self._last_rx - before):
+        if downloads and not self.faults.silent and starts_download(
+            data[0], self._last_rx - before
+        ):
             raise DownloadStart(data)  # a reset: whatever the firmware was doing ends here
         if self.echo and not self.faults.silent:
             self._write(data)
@@ -162,11 +165,21 @@ class PtyLine:
     def send(self, data: bytes) -> None:
         """SEROUT: the whole frame is on the host's side when its last byte would have arrived."""
         self._sleep(len(data) * BYTE_S * self.factor)
+        self.deliver(data)
+
+    def deliver(self, data: bytes) -> None:
+        """Bytes from the Stamp to the host now, through the line's faults (no pacing: for a
+        driver that paces the bytes itself, as the PBASIC host link does)."""
         if self.faults.silent:
             return
         data = self._damage(data)
         self.sent += len(data)
         self._write(data)
+
+    def receive(self, timeout: float) -> bytes:
+        """Bytes from the host within ``timeout``: echoed if pin 16, damaged by the line's
+        faults, never taken for a download (for a driver that runs a program's own SERIN)."""
+        return self._read(timeout, downloads=False)
 
     def pause(self, seconds: float) -> None:
         """Time passes (walking, EEPROM writes); host bytes arriving meanwhile are lost."""

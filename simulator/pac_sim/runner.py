@@ -1,5 +1,9 @@
 """Assemble and run an emulated Stamp (line, EEPROM, world, tracker) in a background thread.
 
+Two backends plug into the same line, EEPROM, world and tracker: the protocol-level model of the
+firmware (:class:`pac_sim.stamp.StampEmulator`, the default) and the firmware itself, a PBASIC
+source run by the interpreter (:class:`pac_sim.firmware.FirmwareEmulator`, ``firmware=PATH``).
+
 Used by the ``pac-sim`` CLI, by tests, and by host code that wants a robot without hardware::
 
     with SimStamp(SimConfig(factor=0)) as sim:
@@ -13,10 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pac_host.errors import InputError
+from pac_host.errors import InputError, PacError
 from pac_host.model import Effect, GaitTable, resolve_table
 from pac_protocol.messages import PROTOCOL_VERSION
 from pac_sim.eeprom import Eeprom
+from pac_sim.firmware import FirmwareEmulator
 from pac_sim.line import IDLE_FLOOR_S, WINDOW_FLOOR_S, Faults, PtyLine
 from pac_sim.stamp import FIRMWARE_VERSION, StampEmulator
 from pac_sim.tracker import TrackerServer
@@ -40,6 +45,8 @@ class SimConfig:
     firmware_version: int = FIRMWARE_VERSION
     window_floor_s: float = WINDOW_FLOOR_S  # shortest real run window
     idle_floor_s: float = IDLE_FLOOR_S  # shortest real idle window
+    firmware: str | None = None  # run this PBASIC source instead of the protocol-level model
+    image: str | None = None  # the tokenizer's image of that source (its EEPROM)
 
 
 class SimStamp:
@@ -61,14 +68,11 @@ class SimStamp:
             window_floor_s=config.window_floor_s,
             idle_floor_s=config.idle_floor_s,
         )
-        self.stamp = StampEmulator(
-            self.line,
-            self.eeprom,
-            self.world,
-            protocol_version=config.protocol_version,
-            firmware_version=config.firmware_version,
-            reset_after=config.reset_after,
-        )
+        try:
+            self.stamp = self._backend(config)
+        except PacError:
+            self.line.close()
+            raise
         self.tracker: TrackerServer | None = None
         if config.tracker is not None:
             try:
@@ -79,6 +83,37 @@ class SimStamp:
                     f"cannot open tracker socket {config.tracker}: {e.strerror}"
                 ) from None
         self._thread = threading.Thread(target=self.stamp.run, name="pac-sim-stamp", daemon=True)
+
+    def _backend(self, config: SimConfig) -> StampEmulator | FirmwareEmulator:
+        if config.firmware is None:
+            if config.image is not None:
+                raise InputError("an image is run with its source: give --firmware SOURCE too")
+            return StampEmulator(
+                self.line,
+                self.eeprom,
+                self.world,
+                protocol_version=config.protocol_version,
+                firmware_version=config.firmware_version,
+                reset_after=config.reset_after,
+            )
+        if (config.protocol_version, config.firmware_version) != (
+            PROTOCOL_VERSION,
+            FIRMWARE_VERSION,
+        ):
+            raise InputError("with --firmware the versions are the firmware's own constants")
+        return FirmwareEmulator(
+            self.line,
+            self.eeprom,
+            self.world,
+            config.firmware,
+            image=config.image,
+            reset_after=config.reset_after,
+        )
+
+    @property
+    def error(self) -> PacError | None:
+        """Why the emulated Stamp stopped serving (a firmware that stopped listening), if so."""
+        return self.stamp.error
 
     @property
     def path(self) -> str:

@@ -81,6 +81,7 @@ class StampEmulator:
         self.cycles_total = 0  # gait cycles since the emulator started, across resets
         self.executed: list[tuple[int, int]] = []  # (cmd, seq) of every request acted on
         self.downloads: list[StampDownload] = []  # every download session, in order
+        self.error = None  # the model never stops serving on its own (the firmware backend may)
         self._reset_pending = threading.Event()
         self._boot_state()
 

@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from typing import Protocol
 
-from .machine import ENDED, SERIN, Stamp
+from .machine import ENDED, SERIN, SerinWait, Stamp
 from .peripherals import PROGRAMMING_PORT
 
 CHUNK_US = 20_000  # run at most this much Stamp time between looks at the link
@@ -57,9 +57,14 @@ class FdLink:
 
 
 def serve(stamp: Stamp, link: ByteLink, *, pin: int = PROGRAMMING_PORT, factor: float = 0.0,
-          floor_s: float = 0.05, echo: bool = False, stop: threading.Event | None = None,
+          floor_s: float | Callable[[SerinWait], float] = 0.05, echo: bool = False,
+          stop: threading.Event | None = None, keep_output: bool = True,
           on_chunk: Callable[[Stamp], None] | None = None) -> str:
-    """Run stamp against link until it ends or stop is set; returns the final state."""
+    """Run stamp against link until it ends or stop is set; returns the final state.
+
+    ``floor_s`` may be a function of the waiting SERIN (e.g. a longer floor for an idle loop's
+    window than for a short one). ``on_chunk`` may reset the Stamp or drop output not yet sent.
+    ``keep_output=False`` forgets ``stamp.output`` once sent (a long run's memory stays flat)."""
     stop = stop or threading.Event()
     wall0 = time.monotonic()
     stamp0 = stamp.now_us
@@ -76,7 +81,11 @@ def serve(stamp: Stamp, link: ByteLink, *, pin: int = PROGRAMMING_PORT, factor: 
         """Send the new output on the host pin, each byte when its Stamp time comes."""
         nonlocal sent
         frames = sorted(stamp.output.frames[sent:], key=lambda f: f[0])
-        sent = len(stamp.output.frames)
+        if keep_output:
+            sent = len(stamp.output.frames)
+        else:
+            del stamp.output.frames[:]
+            sent = 0
         for t_us, p, b in frames:
             if p == pin:
                 pace(t_us)
@@ -86,6 +95,7 @@ def serve(stamp: Stamp, link: ByteLink, *, pin: int = PROGRAMMING_PORT, factor: 
         state = stamp.run(CHUNK_US)
         if on_chunk is not None:
             on_chunk(stamp)
+            state = stamp.state
         flush()
         pace(stamp.now_us)
         if state == ENDED:
@@ -97,8 +107,9 @@ def serve(stamp: Stamp, link: ByteLink, *, pin: int = PROGRAMMING_PORT, factor: 
                 flush()
             continue
         w = stamp.waiting()
+        floor = floor_s(w) if callable(floor_s) else floor_s
         remaining = None if w.deadline_us is None else max(0, w.deadline_us - stamp.now_us)
-        wait_s = floor_s if remaining is None else max(floor_s, remaining / 1e6 * factor)
+        wait_s = floor if remaining is None else max(floor, remaining / 1e6 * factor)
         t0 = time.monotonic()
         data = link.read(wait_s)
         if data:
