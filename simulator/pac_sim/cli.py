@@ -1,7 +1,8 @@
 """`pac-sim`: run an emulated ServoBot Stamp on a pseudo-terminal until interrupted.
 
 Prints the port path (open it with `pac-host robot ... --port PATH` or any serial terminal at
-9600 8N1) and the tracker's address, then serves until Ctrl-C or SIGTERM.
+9600 8N1) and the tracker's address, then serves until Ctrl-C or SIGTERM. With ``--firmware``
+the Stamp runs that PBASIC source; a firmware that stops listening ends pac-sim with one line.
 """
 
 from __future__ import annotations
@@ -73,6 +74,8 @@ def build_config(**o: object) -> SimConfig:
         protocol_version=o["protocol_version"],
         firmware_version=o["firmware_version"],
         window_floor_s=o["window_floor"],
+        firmware=o["firmware"],
+        image=o["image"],
     )
 
 
@@ -147,6 +150,20 @@ def build_config(**o: object) -> SimConfig:
 )
 @click.option("--firmware-version", default=1, show_default=True, type=int)
 @click.option(
+    "--firmware",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="SOURCE.bs2",
+    help="Run this PBASIC firmware in the interpreter instead of the protocol-level model.",
+)
+@click.option(
+    "--image",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="IMAGE.json",
+    help="With --firmware: start from the tokenizer's image of that source (make firmware).",
+)
+@click.option(
     "--link",
     "link_path",
     type=click.Path(dir_okay=False),
@@ -179,7 +196,7 @@ def main(link_path: str | None, **opts: object) -> None:
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     sim.start()
     try:
-        while not done.wait(0.5):
+        while not done.wait(0.1) and sim.error is None:
             pass
     except KeyboardInterrupt:
         pass
@@ -187,4 +204,11 @@ def main(link_path: str | None, **opts: object) -> None:
         sim.close()
         if link_path and Path(link_path).is_symlink():
             os.unlink(link_path)
-        click.echo(f"pac-sim: stopped after {sim.stamp.cycles_total} gait cycles", err=True)
+    if sim.error is not None:
+        click.echo(f"pac-sim: error: {sim.error}", err=True)
+        sys.exit(sim.error.exit_code)
+    inexact = getattr(sim.stamp, "inexact", 0)
+    if inexact:
+        click.echo(f"pac-sim: warning: {inexact} gait cycles' thrust matched no table row exactly "
+                   "(the affecter rule: 2 x strength thrusts per affected leg)", err=True)
+    click.echo(f"pac-sim: stopped after {sim.stamp.cycles_total} gait cycles", err=True)

@@ -46,6 +46,9 @@ WALKED_KEPT = 10_000  # the most recent gait cycles kept in ``walked``
 def load_firmware(source: str | Path, image: str | Path | None = None) -> Stamp:
     """Compile a PBASIC source (errors name file:line); with the tokenizer's image of that same
     source, the EEPROM starts as the image holds it."""
+    if Path(source).suffix.lower() in (".json", ".bin", ".tok"):
+        raise InputError(f"{source}: --firmware runs PBASIC source; pass a built image with "
+                         "--image next to its source")
     kw: dict = {}
     if image is not None:
         kw = read_image(image)
@@ -117,8 +120,8 @@ class FirmwareEmulator:
         self.line, self.eeprom, self.world = line, eeprom, world
         self.source = str(source)
         self.stamp = load_firmware(source, image)
-        self.servo = ServoMap.from_constants(self.stamp.program.symbols.con_value, self.source)
         check_listens(load_firmware(source, image))
+        self.servo = ServoMap.from_constants(self.stamp.program.symbols.con_value, self.source)
         self.reset_after = reset_after
         self.boots = 0  # BOOT frames the program sent
         self.cycles_total = 0  # gait cycles walked since the emulator started, across resets

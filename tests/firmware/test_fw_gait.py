@@ -2,7 +2,8 @@
 
 ``firmware/servobot.bs2`` runs in the project's PBASIC interpreter (``pac_sim.pbasic``): its DATA,
 its constants and its affecter line as written. The thrust each hip servo really gets is
-counted from the pulses (a pulse that moves the leg backward while its foot is down) and
+counted from the pulses (a pulse that moves the leg backward while its foot is down; the
+emulator's world counts with the same code, ``pac_sim.thrust``) and
 checked against the paper's rule: the affected side's thrusting servos get 2a of their 29
 thrust activations (all 29 when 2a >= 29), the other side all 29.
 """
@@ -14,6 +15,7 @@ from fw_build import SOURCE
 from fw_stamp import const, gait_cycle, hip_pins, label, lift_pins
 
 from pac_sim.pbasic import Stamp
+from pac_sim.thrust import ServoMap, ThrustCounter, side_of
 
 ACTIVATIONS = 58
 THRUST = 29
@@ -24,11 +26,6 @@ TRIPOD_B = (1, 2, 5)
 @pytest.fixture(scope="module")
 def stamp() -> Stamp:
     return Stamp.from_file(SOURCE)
-
-
-def side_of(leg: int) -> int:
-    """0 right, 1 left: even legs are on the right (the firmware's leg numbering)."""
-    return leg % 2
 
 
 def mirror(stamp: Stamp, leg: int, pulse: int) -> int:
@@ -49,21 +46,13 @@ def lift_of(stamp: Stamp, act) -> dict[int, int]:
 
 
 def thrust_counts(stamp: Stamp, gait_id: int) -> dict[int, int]:
-    """Thrust activations per leg in one gait cycle of ``gait_id`` from the boundary pose."""
-    hips = hip_pins(stamp)
-    last = {hips[p.pin]: p.width for p in gait_cycle(stamp, 15)[-1] if p.pin in hips}
-    counts = dict.fromkeys(range(6), 0)
-    for act in gait_cycle(stamp, gait_id):
-        lifts = lift_of(stamp, act)
-        for p in act:
-            if p.pin not in hips:
-                continue
-            leg = hips[p.pin]
-            b = back_pulse(stamp, leg)
-            if lifts[leg] == down_pulse(stamp, leg) and abs(p.width - b) < abs(last[leg] - b):
-                counts[leg] += 1
-            last[leg] = p.width
-    return counts
+    """Thrust activations per leg in one gait cycle of ``gait_id``, counted by the emulator's
+    own rule (``pac_sim.thrust``: the world of ``pac-sim --firmware`` moves by this count)."""
+    servo = ServoMap.from_constants(stamp.program.symbols.con_value)
+    n0 = len(stamp.servo.pulses)
+    stamp.call("GaitCycle", gid=gait_id)
+    [cycle] = ThrustCounter(servo).feed(stamp.servo.pulses[n0:])
+    return dict(enumerate(cycle.legs))
 
 
 def test_gait_cycle_has_58_activations_each_driving_12_servos(stamp):

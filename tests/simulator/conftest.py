@@ -72,6 +72,11 @@ def backend(request) -> str:
 
 
 @pytest.fixture
+def firmware_source() -> str:
+    return str(FIRMWARE)
+
+
+@pytest.fixture
 def make_sim(backend, tmp_path):
     """Factory: an emulator (not yet started) with a pyserial port opened on it, of either
     backend. With the firmware, protocol_version/firmware_version make a firmware variant."""

@@ -29,9 +29,10 @@ def one_error_line(res, code: int, words: str) -> None:
 
 
 @pytest.fixture
-def pac_sim(tmp_path):
+def pac_sim(tmp_path, backend, firmware_source):
+    firmware = ["--firmware", firmware_source] if backend == "firmware" else []
     proc = subprocess.Popen(
-        [str(BIN / "pac-sim"), "--realtime", "0", "--eeprom", str(tmp_path / "e.json")],
+        [str(BIN / "pac-sim"), "--realtime", "0", "--eeprom", str(tmp_path / "e.json"), *firmware],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
