@@ -6,7 +6,7 @@ STAMP   := $(VENV)/.installed
 OUT     ?= out
 PYDIRS  := $(wildcard host protocol simulator tests bench)
 
-.PHONY: help venv test demo bench lint sim clean firmware
+.PHONY: help venv test demo bench lint sim sim-firmware clean firmware
 
 help:
 	@echo "make demo    run a short paper experiment on the built-in simulated robot"
@@ -14,6 +14,7 @@ help:
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
 	@echo "make lint    ruff"
 	@echo "make sim     run the Stamp emulator on a pseudo-terminal (REALTIME=0 for full speed)"
+	@echo "make sim-firmware  the same, running firmware/servobot.bs2 itself in the PBASIC interpreter"
 	@echo "make firmware  tokenize firmware/servobot.bs2 (Node.js), writing build/servobot.json and .bin"
 
 $(STAMP): pyproject.toml
@@ -49,6 +50,9 @@ bench: $(STAMP)
 
 sim: $(STAMP)
 	$(BIN)/pac-sim --realtime $(or $(REALTIME),1)
+
+sim-firmware: $(STAMP) firmware
+	$(BIN)/pac-sim --realtime $(or $(REALTIME),1) --firmware firmware/servobot.bs2 --image $(FW_IMAGE)
 
 lint: $(STAMP)
 	$(BIN)/ruff check $(PYDIRS)
