@@ -111,6 +111,8 @@ def test_bad_arguments_exit_2_before_touching_the_port(args, words):
         (["--drop-prob", "2"], "--drop-prob must be in [0, 1]"),
         (["--start", "1,2"], "--start: expected 3"),
         (["--effect", "nope:x=1"], "unknown effect"),
+        (["--firmware", "/nonexistent/fw.bs2"], "/nonexistent/fw.bs2: cannot read"),
+        (["--image", "servobot.json"], "give --firmware SOURCE too"),
     ],
 )
 def test_pac_sim_bad_options_are_one_line(args, words):
