@@ -42,9 +42,9 @@ def main() -> None:
 
 
 def _register() -> None:
-    from pac_host.cli import simulate, table
+    from pac_host.cli import diagnose, simulate, table
 
-    for mod in (table, simulate):
+    for mod in (table, simulate, diagnose):
         mod.register(main)
 
 

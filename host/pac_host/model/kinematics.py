@@ -108,3 +108,27 @@ def rollout(
     """Poses (n + 1, 3) of a run of gait cycles from a start pose, effects included."""
     body, world = step_moves(np.asarray(rows), np.asarray(gait_ids, dtype=np.int64), effects, n0)
     return integrate(np.asarray(start_pose, dtype=np.float64), body, world)
+
+
+def to_body_frame(dx: np.ndarray, dy: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A world-frame displacement (dx, dy) in the frame of heading ``h`` (deg): (F, T).
+
+    The inverse of the displacement part of the pose update: F = dx sin h + dy cos h,
+    T = dx cos h - dy sin h.
+    """
+    rad = np.radians(h)
+    s, c = np.sin(rad), np.cos(rad)
+    return dx * s + dy * c, dx * c - dy * s
+
+
+def moves_between(poses: np.ndarray) -> np.ndarray:
+    """Body-frame moves (..., n, 3) that take each pose of (..., n + 1, 3) to the next one.
+
+    The inverse of :func:`integrate` without world drift: each move is expressed in the frame
+    of the pose before it, so ``integrate(poses[0], moves_between(poses))`` gives ``poses``
+    back. Used to turn observed poses into observed gait-cycle moves.
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    d = np.diff(poses, axis=-2)
+    f, t = to_body_frame(d[..., 0], d[..., 1], poses[..., :-1, 2])
+    return np.stack((f, t, d[..., 2]), axis=-1)
