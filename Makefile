@@ -5,12 +5,13 @@ BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 OUT     ?= out
 
-.PHONY: help venv test demo bench lint clean
+.PHONY: help venv test demo bench bench-diagnose lint clean
 
 help:
 	@echo "make demo    run a short paper experiment on the built-in simulated robot"
 	@echo "make test    install into .venv and run the test suite"
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
+	@echo "make bench-diagnose  blind benchmark of the gap diagnosis, bench/results/diagnose.json"
 	@echo "make lint    ruff"
 
 $(STAMP): pyproject.toml
@@ -30,6 +31,9 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py --out bench/results/bench.json
+
+bench-diagnose: $(STAMP)
+	$(BIN)/python bench/run.py --only diagnose --out bench/results/diagnose.json
 
 lint: $(STAMP)
 	$(BIN)/ruff check host protocol simulator tests bench

@@ -65,3 +65,58 @@ def world_runs(
     sd = np.array([pos_noise_cm, pos_noise_cm, heading_noise_deg])
     obs = poses + rng.normal(size=poses.shape) * sd
     return [Run(f"run{k:03d}", obs[k, 0], ids[k], obs[k, 1:], int(n0[k])) for k in range(m)]
+
+
+# Moderate magnitudes of each effect for blind cases: (sampler, stated range).
+MODERATE = {
+    "turn_shift": (lambda r: {"k": int(r.choice([-2, -1, 1, 2]))}, "k in {-2, -1, 1, 2}"),
+    "turn_scale": (lambda r: {"c": 1 + r.choice([-1, 1]) * r.uniform(0.08, 0.2)},
+                   "c in 1 +- [0.08, 0.2]"),
+    "stride_scale": (lambda r: {"a": 1 + r.choice([-1, 1]) * r.uniform(0.05, 0.12)},
+                     "a in 1 +- [0.05, 0.12]"),
+    "yaw_bias": (lambda r: {"delta": r.choice([-1, 1]) * r.uniform(0.3, 1.0)},
+                 "delta in +-[0.3, 1.0] deg/cycle"),
+    "lateral_slip": (lambda r: {"gamma": r.choice([-1, 1]) * r.uniform(0.03, 0.08)},
+                     "gamma in +-[0.03, 0.08] cm/deg"),
+    "transition": (lambda r: {"alpha": r.uniform(0.2, 0.6)}, "alpha in [0.2, 0.6]"),
+    "battery_sag": (lambda r: {"beta": r.uniform(1e-4, 4e-4)}, "beta in [1e-4, 4e-4] /cycle"),
+    "floor_slope": (lambda r: {"s": r.uniform(0.2, 0.6), "theta": r.uniform(0, 360)},
+                    "s in [0.2, 0.6] cm/cycle, theta in [0, 360)"),
+}
+
+
+def moderate_effect(name: str, rng: np.random.Generator) -> Effect:
+    """An effect with parameters drawn from its :data:`MODERATE` range."""
+    return Effect(name, MODERATE[name][0](rng))
+
+
+def perturbed_rows(rows: np.ndarray, rng: np.random.Generator, pos_cm: float = 0.3,
+                   heading_deg: float = 0.5) -> np.ndarray:
+    """A table near ``rows``: every entry moved by Gaussian noise (a re-measured robot)."""
+    return rows + rng.normal(size=rows.shape) * np.array([pos_cm, pos_cm, heading_deg])
+
+
+def blind_case(
+    rng: np.random.Generator,
+    effects: Sequence[Effect],
+    n_runs: int = 40,
+    n_cycles: int = 60,
+    pos_noise_cm: float = 0.5,
+    heading_noise_deg: float = 1.0,
+    perturb_table: bool = False,
+    holdout_fraction: float = 0.3,
+) -> tuple[np.ndarray, list[Run], list[Run]]:
+    """A true table, runs in a world with ``effects``, split into fitting and held-out runs.
+
+    The table the diagnosis is given is the true table without the effects; returns
+    (rows, fitting runs, held-out runs).
+    """
+    from pac_host.diagnose.pipeline import split_runs
+
+    rows = measured_table().rows
+    if perturb_table:
+        rows = perturbed_rows(rows, rng)
+    cycles = cga_turn_cycles(rng, n_runs)
+    runs = world_runs(rows, effects, cycles, n_cycles, rng, pos_noise_cm, heading_noise_deg)
+    fit, hold = split_runs(runs, holdout_fraction, rng)
+    return rows, fit, hold

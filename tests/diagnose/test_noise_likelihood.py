@@ -1,0 +1,58 @@
+"""Noise floor estimate and the whitened likelihood it feeds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pac_host.diagnose.likelihood import whitener
+from pac_host.diagnose.noise import estimate_noise
+from pac_host.diagnose.residuals import batch_of, step_residuals
+from pac_host.model import Effect, measured_table
+
+EFFECTS = [Effect("transition", {"alpha": 0.5}), Effect("turn_scale", {"c": 1.2})]
+
+
+@pytest.mark.parametrize("pos, head", [(0.5, 1.0), (1.5, 0.5)])
+def test_noise_floor_is_not_inflated_by_effects(make_runs, pos, head):
+    b = batch_of(make_runs(EFFECTS, pos=pos, head=head))
+    nf = estimate_noise(b)
+    assert nf.reliable
+    assert nf.pos_cm == pytest.approx(pos, rel=0.1)
+    assert nf.heading_deg == pytest.approx(head, rel=0.1)
+
+
+def test_whitened_residuals_of_the_true_model_are_white(make_runs):
+    b = batch_of(make_runs(EFFECTS))
+    nf = estimate_noise(b)
+    wh = whitener(b, nf)
+    res = step_residuals(measured_table().rows, b, EFFECTS)
+    w = wh.whiten(res)
+    n = 3 * b.n_steps
+    assert (w**2).sum() / n == pytest.approx(1.0, abs=0.06)
+    # raw heading residuals are strongly anti-correlated step to step; whitened ones are not
+    raw = res[..., 2][:, :-1] * res[..., 2][:, 1:]
+    assert raw.mean() / (res[..., 2] ** 2).mean() < -0.3
+    lag = (w[:, 3:] * w[:, :-3]).sum() / n
+    assert abs(lag) < 0.05
+    # without the effects the whitened sum of squares is far above its expectation
+    assert wh.ssr_per_run(step_residuals(measured_table().rows, b, [])).sum() > 5 * n
+
+
+def test_whitener_inverts_the_dense_covariance(make_runs):
+    b = batch_of(make_runs([], n_runs=2, n_cycles=12))
+    nf = estimate_noise(b)
+    wh = whitener(b, nf)
+    c = wh.steps
+    poses, o = b.poses[0, : c + 1], b.observed[0, :c]
+    d = np.zeros((3 * c, 3 * (c + 1)))
+    for i in range(c):
+        h = np.radians(poses[i, 2])
+        s, co = np.sin(h), np.cos(h)
+        d[3 * i, 3 * i : 3 * i + 5] = [-s, -co, np.radians(o[i, 1]), s, co]
+        d[3 * i + 1, 3 * i : 3 * i + 5] = [-co, s, -np.radians(o[i, 0]), co, -s]
+        d[3 * i + 2, [3 * i + 2, 3 * i + 5]] = [-1, 1]
+    var = np.tile([nf.pos_cm**2, nf.pos_cm**2, nf.heading_deg**2], c + 1)
+    sigma = (d * var) @ d.T
+    w = wh.w[0, 0]
+    np.testing.assert_allclose(w @ sigma @ w.T, np.eye(3 * c), atol=1e-9)
