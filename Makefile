@@ -4,6 +4,7 @@ VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 OUT     ?= out
+PYDIRS  := $(wildcard host protocol simulator tests bench)
 
 .PHONY: help venv test demo bench bench-diagnose lint clean
 
@@ -23,10 +24,11 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 test: $(STAMP)
-	$(BIN)/ruff check host protocol simulator tests bench
+	$(BIN)/ruff check $(PYDIRS)
 	$(BIN)/python -m pytest
 
 demo: $(STAMP)
+	rm -rf $(OUT)/demo-experiment
 	$(BIN)/pac-host experiment --seeds 4 --generations 400 --methods full,partial --jobs 2 --out $(OUT)/demo-experiment
 
 bench: $(STAMP)
@@ -36,7 +38,7 @@ bench-diagnose: $(STAMP)
 	$(BIN)/python bench/run.py --only diagnose --out bench/results/diagnose.json
 
 lint: $(STAMP)
-	$(BIN)/ruff check host protocol simulator tests bench
+	$(BIN)/ruff check $(PYDIRS)
 
 clean:
 	rm -rf $(VENV) $(OUT) bench/results

@@ -60,7 +60,8 @@ def _case(kind: str, index: int, effects, noise, library=None, perturb=False) ->
     d = diagnose(GaitTable(rows), fit, hold, rng, library)
     wall = time.perf_counter() - t0
     sel = [e.name for e in d.selected]
-    return {"kind": kind, "true": [str(e) for e in effects], "true_names": [e.name for e in effects],
+    return {"kind": kind, "true": [str(e) for e in effects],
+            "true_names": [e.name for e in effects],
             "selected": sel, "selected_effects": [str(e) for e in d.selected],
             "verdict": d.verdict, "shrink": d.holdout["shrink"],
             "rollout_cm_before": d.holdout["rollout_cm_before"],

@@ -1,7 +1,8 @@
 """Run every benchmark module (bench/bench_*.py) and write one JSON file of results.
 
 Each module defines ``run(quick: bool) -> dict`` returning its figures, including the targets it
-is checked against and whether they were met. Usage: ``python bench/run.py --out FILE [--only NAME]``.
+is checked against and whether they were met.
+Usage: ``python bench/run.py --out FILE [--only NAME] [--quick]``.
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ def main() -> int:
         t0 = time.perf_counter()
         res = mod.run(quick=args.quick)
         res["bench_wall_s"] = round(time.perf_counter() - t0, 2)
-        res["machine"] = {"python": platform.python_version(), "cpu": platform.processor() or platform.machine()}
+        res["machine"] = {"python": platform.python_version(),
+                          "cpu": platform.processor() or platform.machine()}
         results[name] = res
         out.write_text(json.dumps(results, indent=1) + "\n")
         ok = all(t.get("met", True) for t in res.get("targets", {}).values())

@@ -60,11 +60,16 @@ class Coverage:
         return coverage_score(self.fitness, self.repeat_visits)
 
     def row(self, index: int | tuple = 0) -> dict:
+        """The figures of one path as a dict (any index for a single path)."""
+
+        def get(a: np.ndarray) -> int:
+            return int(a) if np.ndim(a) == 0 else int(a[index])
+
         return {
-            "blocks_covered": int(self.blocks_covered[index]),
-            "blocks_covered_once": int(self.blocks_covered_once[index]),
-            "fitness": int(self.fitness[index]),
-            "repeat_visits": int(self.repeat_visits[index]),
+            "blocks_covered": get(self.blocks_covered),
+            "blocks_covered_once": get(self.blocks_covered_once),
+            "fitness": get(self.fitness),
+            "repeat_visits": get(self.repeat_visits),
         }
 
 

@@ -37,6 +37,7 @@ from pac_host.coverage import (
     format_turn_cycle,
     simulate,
 )
+from pac_host.errors import InputError
 from pac_host.model.table import GaitTable
 
 
@@ -233,3 +234,45 @@ def run(
             return state
         step = min(cfg.interval, cfg.generations - state.generation)
         state, _ = advance_cga(state, step, rng, cfg)
+
+
+def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
+    """Everything needed to resume a PAL run exactly: the state and the generator's state.
+
+    Floats go through JSON's shortest round-trip representation, so a resumed run continues
+    bit for bit.
+    """
+    return {
+        "format": "pac-pal-state/1",
+        "generation": state.generation,
+        "cga_pop": state.cga_pop.tolist(),
+        "models": state.models.tolist(),
+        "model_effects": [e.to_json() for e in state.model_effects],
+        "operational": state.operational.tolist(),
+        "operational_score": state.operational_score,
+        "operational_fitness": state.operational_fitness,
+        "rng": rng.bit_generator.state,
+    }
+
+
+def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
+    """Inverse of :func:`state_to_json`."""
+    from pac_host.model.effects import effect_from_json
+
+    if not isinstance(doc, dict) or doc.get("format") != "pac-pal-state/1":
+        raise InputError("not a pac-pal-state/1 document")
+    try:
+        rng = np.random.default_rng()
+        rng.bit_generator.state = doc["rng"]
+        state = PALState(
+            int(doc["generation"]),
+            np.array(doc["cga_pop"], dtype=np.int64),
+            np.array(doc["models"], dtype=np.float64),
+            tuple(effect_from_json(e) for e in doc["model_effects"]),
+            np.array(doc["operational"], dtype=np.int64),
+            doc["operational_score"],
+            doc["operational_fitness"],
+        )
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"PAL state is incomplete or malformed ({e})") from None
+    return state, rng

@@ -42,9 +42,9 @@ def main() -> None:
 
 
 def _register() -> None:
-    from pac_host.cli import diagnose, simulate, table
+    from pac_host.cli import diagnose, experiment, simulate, table
 
-    for mod in (table, simulate, diagnose):
+    for mod in (table, simulate, experiment, diagnose):
         mod.register(main)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import click
 
 from pac_host.errors import InputError
@@ -42,4 +44,4 @@ def load_with_effects(table_spec: str, effect_specs: tuple[str, ...] = ()) -> Ga
 
 def progress_enabled() -> bool:
     """Progress bars go to stderr, and only when it is a terminal."""
-    return click.get_text_stream("stderr").isatty()
+    return sys.stderr.isatty()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import click
 
@@ -14,11 +15,14 @@ from pac_host.coverage import DEFAULT_BUDGET, START_POSE, check_budget, parse_tu
 @table_option()
 @effect_option()
 @click.option("--turn-cycle", "turn_cycle", required=True, metavar="ID:REPS,...",
-              help='Looped genes of gait cycle id (0..31) and repetitions (0..63), e.g. "12:14,3:10".')
+              help='Looped genes of gait cycle id (0..31) and repetitions (0..63), '
+                   'e.g. "12:14,3:10".')
 @click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
               help="Gait cycles to run.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
-def simulate_cmd(table_spec, effect_specs, turn_cycle, budget, as_json) -> None:
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also draw the path on the area to this PNG.")
+def simulate_cmd(table_spec, effect_specs, turn_cycle, budget, as_json, plot) -> None:
     """Walk a turn cycle from the start pose (45, 30, 90) and score the path.
 
     Prints the pose after each gait cycle and the coverage figures: blocks covered, blocks
@@ -29,6 +33,10 @@ def simulate_cmd(table_spec, effect_specs, turn_cycle, budget, as_json) -> None:
     cov = simulate(table.rows, genes, check_budget(budget), table.effects, START_POSE,
                    keep_paths=True)
     poses = cov.poses[0]
+    if plot:
+        from pac_host.plots import coverage_path
+
+        coverage_path(poses, cov.blocks[0], plot, f"{turn_cycle} on {table.name}", cov.row(0))
     if as_json:
         doc = {"poses": [[float(v) for v in p] for p in poses], **cov.row(0)}
         click.echo(json.dumps(doc))

@@ -1,0 +1,99 @@
+"""Coverage simulator throughput, PAL punctuation wall time, and the 30-seed experiment.
+
+Targets (issue: foundation): >= 100,000 turn-cycle evaluations per second on one core at a
+200-cycle budget; one punctuation (40 CGA generations + 40 model-GA generations + the 3 robot
+tests) under 0.5 s; the 30-seed, two-method, 1000-generation experiment under 10 minutes with
+--jobs 2.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pac_host import cga, pal
+from pac_host.coverage import simulate
+from pac_host.model import measured_table, shifted_table
+
+
+def _best_of(fn, repeats: int) -> float:
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def evals_per_second(quick: bool) -> dict:
+    rng = np.random.default_rng(0)
+    rows = measured_table().rows
+    out = {}
+    # random turn cycles, and a converged CGA population (what the hot loop really sees)
+    random_pop = cga.random_population(rng, 1024)
+    evolved, _ = cga.evolve(rows, cga.random_population(rng, 128), 200, rng)
+    for name, pop in (("random", random_pop), ("cga_population", np.tile(evolved, (8, 1, 1)))):
+        t = _best_of(lambda p=pop: simulate(rows, p, 200), 5 if quick else 25)
+        out[name] = round(len(pop) / t)
+    return out
+
+
+def punctuation_seconds(quick: bool) -> dict:
+    rng = np.random.default_rng(1)
+    cfg = pal.PALConfig()
+    model = measured_table()
+    pop, _ = cga.evolve(model.rows, cga.random_population(rng, cfg.cga_population), 100, rng)
+    state = pal.initial_state(model, rng, cfg, pop)
+    robot = pal.SimulatedRobot(shifted_table())
+    times = []
+    for _ in range(3 if quick else 10):
+        t = time.perf_counter()
+        state, _ = pal.punctuate(state, robot, rng, cfg)
+        state, _ = pal.advance_cga(state, cfg.interval, rng, cfg)
+        times.append(time.perf_counter() - t)
+    return {"median_s": round(float(np.median(times)), 4), "max_s": round(max(times), 4)}
+
+
+def experiment_seconds() -> dict:
+    with tempfile.TemporaryDirectory() as d:
+        cmd = [sys.executable, "-m", "pac_host.cli", "experiment", "--seeds", "30",
+               "--generations", "1000", "--methods", "full,partial", "--jobs", "2",
+               "--out", d]
+        t = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True)
+        wall = time.perf_counter() - t
+        summary = json.loads((Path(d) / "summary.json").read_text())
+    comp = summary["comparison"]
+    return {"wall_s": round(wall, 1), "optimum": summary["optimum"],
+            "methods": {m: {k: v for k, v in s.items() if k != "mean_coverage"}
+                        for m, s in comp["methods"].items()},
+            "tests": comp.get("tests")}
+
+
+def run(quick: bool = False) -> dict:
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core
+    res: dict = {"evals_per_second": evals_per_second(quick),
+                 "punctuation": punctuation_seconds(quick)}
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
+    targets = {
+        "evals_per_second": {"value": res["evals_per_second"]["random"], "target": ">= 100000",
+                             "met": res["evals_per_second"]["random"] >= 1e5},
+        "punctuation_s": {"value": res["punctuation"]["median_s"], "target": "< 0.5",
+                          "met": res["punctuation"]["median_s"] < 0.5},
+    }
+    if not quick:
+        res["experiment_30_seeds"] = experiment_seconds()
+        wall = res["experiment_30_seeds"]["wall_s"]
+        targets["experiment_30x2x1000_jobs2_s"] = {"value": wall, "target": "< 600",
+                                                   "met": wall < 600}
+    res["targets"] = targets
+    return res

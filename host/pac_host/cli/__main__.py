@@ -1,0 +1,5 @@
+"""`python -m pac_host.cli` runs the pac-host command."""
+
+from pac_host.cli.main import main
+
+main()

@@ -1,0 +1,101 @@
+"""`pac-host experiment`: the paper's PAL experiment, full against partial recombination."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import click
+
+from pac_host.cli.options import effect_option, load_with_effects, progress_enabled
+from pac_host.coverage import DEFAULT_BUDGET, check_budget
+from pac_host.experiment import ExperimentConfig, run_experiment
+from pac_host.model import resolve_table
+from pac_host.pal import PALConfig
+from pac_host.plots import experiment_plots
+
+
+@click.command("experiment")
+@click.option("--seeds", default=5, show_default=True, type=int,
+              help="Starting populations (the paper used 5).")
+@click.option("--generations", default=1000, show_default=True, type=int,
+              help="CGA generations per run; a punctuation every 40.")
+@click.option("--methods", default="full,partial", show_default=True,
+              help="Comma-separated: full, partial.")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Directory for summary.json, log.jsonl, optimum.json and the PNG plots.")
+@click.option("--jobs", default=1, show_default=True, type=click.IntRange(1, 64),
+              help="Worker processes; results do not depend on it.")
+@click.option("--seed", "base_seed", default=0, show_default=True, type=int,
+              help="Base seed: the whole experiment is a function of it.")
+@click.option("--actual", "actual_spec", default="shifted", show_default=True,
+              metavar="measured|shifted|FILE", help="The simulated actual robot's table.")
+@effect_option()
+@click.option("--model", "model_spec", default="measured", show_default=True,
+              metavar="measured|shifted|FILE", help="The model the CGA starts on.")
+@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
+              help="Gait cycles per test run.")
+@click.option("--initial-generations", default=1000, show_default=True, type=int,
+              help="Length of the CGA run on the model that seeds each population.")
+@click.option("--optimum-runs", default=4, show_default=True, type=int,
+              help="Long CGA runs on the actual table that establish the optimum.")
+@click.option("--optimum-generations", default=3000, show_default=True, type=int)
+@click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
+def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
+                   effect_specs, model_spec, budget, initial_generations, optimum_runs,
+                   optimum_generations, resume) -> None:
+    """Run PAL from N starting populations with each recombination method.
+
+    Writes OUT/summary.json (per method and seed: operational coverage on the actual robot at
+    each punctuation, the generation the optimum was first reached, the final model error per
+    gait cycle; the comparison with exact tests over seeds), OUT/log.jsonl (one line per
+    punctuation, appended as it happens), OUT/optimum.json and PNG plots.
+
+    Example: pac-host experiment --seeds 30 --generations 1000 --jobs 2 --out out/paper
+    """
+    cfg = ExperimentConfig(
+        seeds=seeds, generations=generations,
+        methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
+        base_seed=base_seed, initial_generations=initial_generations,
+        optimum_runs=optimum_runs, optimum_generations=optimum_generations,
+        pal=replace(PALConfig(), budget=check_budget(budget)),
+    )
+    actual = load_with_effects(actual_spec, effect_specs)
+    model = resolve_table(model_spec)
+    bar = _Progress() if progress_enabled() else None
+    summary = run_experiment(out_dir, cfg, model, actual, jobs, resume, bar)
+    if bar:
+        bar.close()
+    plots = experiment_plots(summary, out_dir)
+    comp = summary["comparison"]
+    click.echo(f"optimum on the actual robot ({actual.name}): fitness {summary['optimum']}")
+    for m, s in comp["methods"].items():
+        gen = s["mean_generation_reached"]
+        click.echo(f"{m:>8}: {s['reached_optimum']}/{s['seeds']} seeds reached the optimum"
+                   f"{f' (mean generation {gen:.0f})' if gen is not None else ''}; "
+                   f"mean final coverage {s['mean_final_coverage']:.2f}")
+    if "tests" in comp:
+        t = comp["tests"]
+        click.echo(f"reached optimum, Fisher exact p = {t['reached_optimum_fisher_exact_p']:.4g}; "
+                   f"final coverage, Wilcoxon p = {t['final_coverage_wilcoxon']['p_value']:.4g}; "
+                   f"mean coverage, Wilcoxon p = {t['mean_coverage_wilcoxon']['p_value']:.4g}")
+    click.echo(f"summary: {out_dir / 'summary.json'}")
+    click.echo("plots: " + ", ".join(str(p) for p in plots))
+
+
+class _Progress:
+    """One self-rewriting line on stderr: stage, done/total."""
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        sys.stderr.write(f"\r{stage}: {done}/{total}   ")
+        if done == total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        sys.stderr.flush()
+
+
+def register(main: click.Group) -> None:
+    main.add_command(experiment_cmd)

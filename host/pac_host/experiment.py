@@ -1,0 +1,283 @@
+"""The paper's experiment: PAL with full against partial recombination over many seeds.
+
+For each seed (a starting population), the CGA's first population is the final population of a
+long CGA run on the measured table; both methods then run PAL from it against the same actual
+robot with the same random stream, so each seed gives a paired comparison. "Optimal" is the best
+coverage fitness that long CGA runs reach on the actual robot itself.
+
+Everything is reproducible from ``base_seed``: run ``(seed, method)`` draws from
+``SeedSequence([base_seed, seed, stage])``, so the results do not depend on ``jobs`` or on
+which runs a resumed experiment skips.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pac_host import cga, pal, stats
+from pac_host.coverage import fitness_of_score, format_turn_cycle, simulate
+from pac_host.errors import InputError
+from pac_host.model.effects import effective_rows
+from pac_host.model.table import GaitTable, measured_table, shifted_table
+
+STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    seeds: int = 5
+    generations: int = 1000
+    methods: tuple[str, ...] = ("full", "partial")
+    base_seed: int = 0
+    initial_generations: int = 1000  # the long CGA run on the model that seeds each population
+    optimum_runs: int = 4
+    optimum_generations: int = 3000
+    pal: pal.PALConfig = field(default_factory=pal.PALConfig)
+
+    def check(self) -> None:
+        if self.seeds < 1:
+            raise InputError(f"--seeds must be at least 1, got {self.seeds}")
+        if self.generations < 0:
+            raise InputError(f"--generations must be >= 0, got {self.generations}")
+        bad = [m for m in self.methods if m not in ("full", "partial")]
+        if bad or not self.methods:
+            raise InputError(f"--methods takes full and/or partial, got {','.join(self.methods)}")
+
+
+def _rng(base: int, seed: int, stage: int, extra: int = 0) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence([base, seed, stage, extra]))
+
+
+def initial_population(model: GaitTable, seed: int, cfg: ExperimentConfig) -> np.ndarray:
+    """The CGA's first population for a seed: the end of a long CGA run on the model."""
+    rng = _rng(cfg.base_seed, seed, STAGE_INITIAL)
+    ccfg = cfg.pal.cga_config()
+    pop = cga.random_population(rng, ccfg.population)
+    pop, _ = cga.evolve(model.rows, pop, cfg.initial_generations, rng, ccfg, model.effects)
+    return pop
+
+
+def optimum_run(actual: GaitTable, k: int, cfg: ExperimentConfig) -> dict:
+    """One long CGA run on the actual robot itself: its best turn cycle and fitness."""
+    rng = _rng(cfg.base_seed, k, STAGE_OPTIMUM)
+    ccfg = cfg.pal.cga_config()
+    pop = cga.random_population(rng, ccfg.population)
+    pop, best = cga.evolve(actual.rows, pop, cfg.optimum_generations, rng, ccfg, actual.effects)
+    cov = simulate(actual.rows, pop[0], ccfg.budget, actual.effects)
+    return {"run": k, "turn_cycle": format_turn_cycle(pop[0]), **cov.row(0),
+            "best_by_generation": [int(fitness_of_score(b)) for b in best[::100]]}
+
+
+def pal_run(
+    model: GaitTable,
+    actual: GaitTable,
+    seed: int,
+    method: str,
+    init_pop: np.ndarray,
+    cfg: ExperimentConfig,
+    log_path: Path | None,
+) -> dict:
+    """One PAL run; each punctuation is appended to the log as it happens."""
+    pcfg = pal.PALConfig(**{**_pal_fields(cfg.pal), "method": method,
+                            "generations": cfg.generations})
+    rng = _rng(cfg.base_seed, seed, STAGE_PAL)
+    robot = pal.SimulatedRobot(actual, pcfg.budget)
+    state = pal.initial_state(model, rng, pcfg, init_pop)
+    curve: list[tuple[int, int]] = []
+    truth = effective_rows(actual.rows, actual.effects)
+
+    def log(st: pal.PALState, record: dict) -> None:
+        curve.append((record["generation"], record["operational_fitness"]))
+        record["model_error"] = _model_error(st.models[0], truth)
+        record["model"] = st.models[0].round(6).tolist()
+        if log_path is not None:
+            line = json.dumps({"seed": seed, **record}) + "\n"
+            with open(log_path, "a") as f:  # one write per line: appends stay whole
+                f.write(line)
+                f.flush()
+
+    state = pal.run(state, robot, rng, pcfg, log)
+    return {
+        "seed": seed,
+        "method": method,
+        "generations": [g for g, _ in curve],
+        "coverage": [f for _, f in curve],
+        "operational": format_turn_cycle(state.operational),
+        "final_model_error": _model_error(state.models[0], truth),
+        "final_model": state.models[0].round(6).tolist(),
+    }
+
+
+def _model_error(model: np.ndarray, truth: np.ndarray) -> list[dict]:
+    """|model - actual| per gait cycle id and component."""
+    err = np.abs(model - truth)
+    return [{"id": i, "F": round(float(e[0]), 4), "T": round(float(e[1]), 4),
+             "dH": round(float(e[2]), 4)} for i, e in enumerate(err)]
+
+
+def _pal_fields(p: pal.PALConfig) -> dict:
+    return {k: getattr(p, k) for k in p.__dataclass_fields__}
+
+
+def _read_complete_runs(log_path: Path, cfg: ExperimentConfig) -> dict[tuple[int, str], list]:
+    """Punctuation records of runs whose log reaches the final generation."""
+    runs: dict[tuple[int, str], list] = {}
+    if not log_path.exists():
+        return runs
+    for n, line in enumerate(log_path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+            runs.setdefault((int(rec["seed"]), rec["method"]), []).append(rec)
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+            raise InputError(f"{log_path}:{n}: not a punctuation record; cannot resume") from None
+    return {k: v for k, v in runs.items()
+            if any(r["generation"] >= cfg.generations for r in v)}
+
+
+def reached_at(generations: Sequence[int], coverage: Sequence[int], optimum: int) -> int | None:
+    """The CGA generation at which the operational coverage first reached the optimum."""
+    for g, c in zip(generations, coverage, strict=True):
+        if c >= optimum:
+            return g
+    return None
+
+
+def compare(results: list[dict], cfg: ExperimentConfig, optimum: int) -> dict:
+    """Per method: seeds reaching the optimum, the mean curve; and tests between methods."""
+    by: dict[str, dict[int, dict]] = {m: {} for m in cfg.methods}
+    for r in results:
+        by[r["method"]][r["seed"]] = r
+    out: dict = {"methods": {}}
+    for m, runs in by.items():
+        curves = np.array([runs[s]["coverage"] for s in sorted(runs)], dtype=float)
+        reached = [runs[s]["reached_optimum_at"] for s in sorted(runs)]
+        out["methods"][m] = {
+            "seeds": len(runs),
+            "reached_optimum": sum(r is not None for r in reached),
+            "mean_coverage": curves.mean(axis=0).round(4).tolist() if len(curves) else [],
+            "mean_final_coverage": float(curves[:, -1].mean()) if len(curves) else None,
+            "mean_generation_reached": (float(np.mean([r for r in reached if r is not None]))
+                                        if any(r is not None for r in reached) else None),
+        }
+    if set(cfg.methods) == {"full", "partial"}:
+        f, p = out["methods"]["full"], out["methods"]["partial"]
+        seeds = sorted(set(by["full"]) & set(by["partial"]))
+        fin_p = [by["partial"][s]["coverage"][-1] for s in seeds]
+        fin_f = [by["full"][s]["coverage"][-1] for s in seeds]
+        auc_p = [float(np.mean(by["partial"][s]["coverage"])) for s in seeds]
+        auc_f = [float(np.mean(by["full"][s]["coverage"])) for s in seeds]
+        out["tests"] = {
+            "reached_optimum_fisher_exact_p": stats.fisher_exact(
+                p["reached_optimum"], p["seeds"] - p["reached_optimum"],
+                f["reached_optimum"], f["seeds"] - f["reached_optimum"]),
+            "final_coverage_wilcoxon": stats.wilcoxon_signed_rank(fin_p, fin_f),
+            "mean_coverage_wilcoxon": stats.wilcoxon_signed_rank(auc_p, auc_f),
+            "note": "paired over seeds (same starting population); two-sided; "
+                    "Wilcoxon statistic is the rank sum of seeds where partial is higher",
+        }
+    return out
+
+
+def _map(fn: Callable, args: list[tuple], jobs: int,
+         done: Callable[[object], None] | None = None) -> list:
+    if jobs <= 1 or len(args) <= 1:
+        out = []
+        for a in args:
+            out.append(fn(*a))
+            if done:
+                done(out[-1])
+        return out
+    with ProcessPoolExecutor(max_workers=jobs) as ex:
+        futs = [ex.submit(fn, *a) for a in args]
+        out = []
+        for fut in futs:
+            out.append(fut.result())
+            if done:
+                done(out[-1])
+        return out
+
+
+def run_experiment(
+    out_dir: Path,
+    cfg: ExperimentConfig = ExperimentConfig(),
+    model: GaitTable | None = None,
+    actual: GaitTable | None = None,
+    jobs: int = 1,
+    resume: bool = False,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> dict:
+    """Run the experiment, writing log.jsonl as it goes and summary.json at the end."""
+    cfg.check()
+    model = model or measured_table()
+    actual = actual or shifted_table()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    log_path = out_dir / "log.jsonl"
+    done_runs = _read_complete_runs(log_path, cfg) if resume else {}
+    if not resume and log_path.exists() and log_path.stat().st_size > 0:
+        raise InputError(f"{log_path} exists: use --resume to continue it, or another --out")
+    if resume and log_path.exists():  # drop incomplete runs' lines; they are rerun identically
+        keep = [json.dumps(r) for recs in done_runs.values() for r in recs]
+        tmp = log_path.with_suffix(".tmp")
+        tmp.write_text("".join(line + "\n" for line in keep))
+        os.replace(tmp, log_path)
+
+    def tick(stage: str, total: int):
+        count = [0]
+
+        def done(_):
+            count[0] += 1
+            if progress:
+                progress(stage, count[0], total)
+        return done
+
+    opt_args = [(actual, k, cfg) for k in range(cfg.optimum_runs)]
+    optimum_runs = _map(optimum_run, opt_args, jobs, tick("optimum", len(opt_args)))
+    optimum = max(r["fitness"] for r in optimum_runs)
+    (out_dir / "optimum.json").write_text(json.dumps(
+        {"fitness": optimum, "runs": optimum_runs,
+         "how": f"{cfg.optimum_runs} CGA runs of {cfg.optimum_generations} generations "
+                "on the actual robot's table"}, indent=1) + "\n")
+
+    todo = [(s, m) for s in range(cfg.seeds) for m in cfg.methods if (s, m) not in done_runs]
+    seeds_needed = sorted({s for s, _ in todo})
+    pops = dict(zip(seeds_needed, _map(
+        initial_population, [(model, s, cfg) for s in seeds_needed], jobs,
+        tick("initial populations", len(seeds_needed))), strict=True))
+    fresh = _map(pal_run, [(model, actual, s, m, pops[s], cfg, log_path) for s, m in todo],
+                 jobs, tick("PAL runs", len(todo)))
+    results = fresh + [_result_from_log(recs, s, m) for (s, m), recs in done_runs.items()]
+    for r in results:
+        r["reached_optimum_at"] = reached_at(r["generations"], r["coverage"], optimum)
+    results.sort(key=lambda r: (r["method"], r["seed"]))
+    summary = {
+        "format": "pac-experiment/1",
+        "config": {**asdict(cfg), "pal": None, "methods": list(cfg.methods)},
+        "pal_config": asdict(cfg.pal),
+        "model": model.name,
+        "actual": {"name": actual.name, "effects": [e.to_json() for e in actual.effects]},
+        "optimum": optimum,
+        "runs": results,
+        "comparison": compare(results, cfg, optimum),
+    }
+    tmp = out_dir / "summary.json.tmp"
+    tmp.write_text(json.dumps(summary, indent=1) + "\n")
+    os.replace(tmp, out_dir / "summary.json")
+    return summary
+
+
+def _result_from_log(recs: list[dict], seed: int, method: str) -> dict:
+    recs = sorted(recs, key=lambda r: r["generation"])
+    return {"seed": seed, "method": method,
+            "generations": [r["generation"] for r in recs],
+            "coverage": [r["operational_fitness"] for r in recs],
+            "operational": recs[-1]["operational"],
+            "final_model_error": recs[-1]["model_error"], "final_model": recs[-1]["model"]}

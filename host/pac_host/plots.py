@@ -1,0 +1,135 @@
+"""PNG plots a person looks at: learning curves in the style of the paper's Figures 6-8.
+
+Rendering uses matplotlib's Agg backend (files only, no display needed).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+METHOD_TITLES = {
+    "full": "PAL without partial recombination (full)",
+    "partial": "PAL with partial recombination",
+}
+METHOD_COLOURS = {"full": "tab:red", "partial": "tab:blue"}
+
+
+def coverage_per_seed(summary: dict, method: str, path: Path) -> Path:
+    """Operational coverage on the actual robot against CGA generation, one line per seed."""
+    runs = [r for r in summary["runs"] if r["method"] == method]
+    fig, ax = plt.subplots(figsize=(7, 4.2), dpi=110)
+    for r in runs:
+        ax.step(r["generations"], r["coverage"], where="post", lw=1.2, alpha=0.8,
+                label=f"seed {r['seed']}" if len(runs) <= 10 else None)
+    _decorate(ax, summary, METHOD_TITLES.get(method, method) + f" ({len(runs)} seeds)")
+    if len(runs) <= 10:
+        ax.legend(fontsize=7, ncol=2, loc="lower right")
+    return _save(fig, path)
+
+
+def mean_coverage(summary: dict, path: Path) -> Path:
+    """The methods' mean operational coverage against CGA generation (paper's Figure 8)."""
+    fig, ax = plt.subplots(figsize=(7, 4.2), dpi=110)
+    comp = summary["comparison"]["methods"]
+    for method, m in comp.items():
+        gens = next(r["generations"] for r in summary["runs"] if r["method"] == method)
+        ax.plot(gens, m["mean_coverage"], lw=2, color=METHOD_COLOURS.get(method),
+                label=f"{method}: {m['reached_optimum']}/{m['seeds']} reached the optimum")
+    _decorate(ax, summary, "Mean operational coverage over seeds")
+    ax.legend(fontsize=8, loc="lower right")
+    return _save(fig, path)
+
+
+def _decorate(ax, summary: dict, title: str) -> None:
+    ax.axhline(summary["optimum"], color="k", ls="--", lw=1, label="optimum on the actual robot")
+    ax.set_xlabel("CGA generation")
+    ax.set_ylabel("coverage fitness on the actual robot (3R + c)")
+    ax.set_title(title)
+    ax.set_ylim(bottom=0, top=summary["optimum"] + 2)
+    ax.grid(alpha=0.3)
+
+
+def _save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def experiment_plots(summary: dict, out_dir: Path) -> list[Path]:
+    """All three figures for an experiment summary; returns their paths."""
+    paths = [coverage_per_seed(summary, m, out_dir / f"coverage_{m}.png")
+             for m in summary["config"]["methods"]]
+    paths.append(mean_coverage(summary, out_dir / "coverage_means.png"))
+    return paths
+
+
+def coverage_path(poses, blocks, path: Path, title: str = "Coverage path",
+                  figures: dict | None = None) -> Path:
+    """The path on the area: 60 cm blocks with their mines, the body width at each detection,
+    found mines in green and missed ones in red."""
+    import numpy as np
+    from matplotlib.patches import Rectangle
+
+    from pac_host.coverage import BLOCK_CM, COLUMNS, HALF_BODY_CM
+
+    poses = np.asarray(poses)
+    blocks = np.asarray(blocks)
+    top_row = max(int(max(poses[:, 1].max(), 0) // BLOCK_CM) + 1, 3)
+    height_cm = top_row * BLOCK_CM + 30
+    fig, ax = plt.subplots(figsize=(4.2, min(1.2 + 3.6 * height_cm / 220, 16)), dpi=110)
+    found = set(blocks[blocks >= 0].tolist())
+    for r in range(top_row):
+        for c in range(COLUMNS):
+            ax.add_patch(Rectangle((c * BLOCK_CM, r * BLOCK_CM), BLOCK_CM, BLOCK_CM, fill=False,
+                                   lw=0.8, ec="0.6"))
+            hit = r * COLUMNS + c in found
+            ax.plot((c + 0.5) * BLOCK_CM, (r + 0.5) * BLOCK_CM, marker="*", ms=9,
+                    color="tab:green" if hit else "tab:red", zorder=3)
+    ax.plot(poses[:, 0], poses[:, 1], "-", color="tab:blue", lw=1, zorder=2)
+    det = blocks >= 0
+    rad = np.radians(poses[det, 2])
+    dx, dy = HALF_BODY_CM * np.cos(rad), -HALF_BODY_CM * np.sin(rad)
+    for (x, y), ex, ey in zip(poses[det, :2], dx, dy, strict=True):
+        ax.plot([x - ex, x + ex], [y - ey, y + ey], color="tab:green", lw=1.5, alpha=0.6)
+    ax.plot(*poses[0, :2], "ko", ms=5, label="start")
+    ax.set_xlim(-20, COLUMNS * BLOCK_CM + 20)
+    ax.set_ylim(-20, top_row * BLOCK_CM + 10)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (cm)")
+    ax.set_ylabel("y (cm)")
+    if figures:
+        title += (f"\ncovered {figures['blocks_covered']}, once {figures['blocks_covered_once']},"
+                  f" fitness {figures['fitness']}")
+    ax.set_title(title, fontsize=9)
+    return _save(fig, path)
+
+
+def learning_progress(records: list[dict], path: Path, title: str = "Learning progress") -> Path:
+    """Operational coverage on the robot and the model's error, per punctuation."""
+    gens = [r["generation"] for r in records]
+    fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
+    ax.step(gens, [r["operational_fitness"] for r in records], where="post", lw=2,
+            label="operational coverage on the robot")
+    ax.plot(gens, [r["observed"][0]["fitness"] for r in records], "o", ms=4,
+            label="tested best turn cycle on the robot")
+    ax.plot(gens, [r["predicted"][0]["fitness"] for r in records], "x", ms=5,
+            label="same, predicted by the model")
+    ax.set_xlabel("CGA generation")
+    ax.set_ylabel("coverage fitness (3R + c)")
+    ax2 = ax.twinx()
+    ax2.plot(gens, [r["model_error_before"] for r in records], color="tab:gray", lw=1, ls=":",
+             label="model error on the new tests")
+    ax2.set_ylabel("model error (sum of 6 differences)")
+    lines = ax.get_legend_handles_labels()
+    lines2 = ax2.get_legend_handles_labels()
+    ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=7, loc="upper left")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)

@@ -1,0 +1,134 @@
+"""The coverage simulator: the detection rule, the figures, and the vectorized batch paths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pac_host.coverage import (
+    coverage_of_poses,
+    detect_blocks,
+    expand,
+    figures_from_blocks,
+    format_turn_cycle,
+    parse_turn_cycle,
+    simulate,
+)
+from pac_host.errors import InputError
+from pac_host.model import Effect, measured_table, rollout, shifted_table
+
+M = measured_table().rows
+
+
+@pytest.mark.parametrize("pose, block", [
+    ((30, 30, 0), 0),          # body across x, well inside block (row 0, col 0)
+    ((150, 90, 45), 5),        # diagonal body inside row 1, col 2
+    ((57, 30, 0), -1),         # heading +y: body spans x 51..63, straddles columns 0 and 1
+    ((45, 58, 90), -1),        # heading +x: body spans y 52..64, straddles rows 0 and 1
+    ((45, 54, 90), 0),         # y 48..60: the far end touches row 1's border: not inside row 0
+    ((45, 53.9, 90), 0),
+    ((-1, 30, 0), -1),         # outside the area on the left
+    ((178, 30, 0), -1),        # x 172..184 passes the right edge at 180
+    ((30, -2, 90), -1),        # below y = 0
+    ((100, 1000, 180), 49),    # far up: row 16 (960..1020), col 1
+])
+def test_detection_rule_by_hand(pose, block):
+    b = detect_blocks(np.array([pose], dtype=float))[0]
+    if pose == (45, 54, 90):
+        assert b == -1  # y + 6 = 60 lies in row 1
+    else:
+        assert b == block
+
+
+def test_figures_by_hand():
+    # visits: block 0 twice, block 1 twice (left then re-entered), block 2 once
+    c, once, fit, rep = figures_from_blocks(np.array([[0, 0, 1, -1, 1, 2, 0]]))
+    assert (c[0], once[0], fit[0], rep[0]) == (3, 1, 3, 2)
+    # row 0 full, row 1 has two blocks: 3 * 1 + 2
+    assert figures_from_blocks(np.array([[0, 1, 2, 3, 5]]))[2][0] == 5
+    # a mine left behind in row 0 caps the score even though row 1 is full
+    c, once, fit, rep = figures_from_blocks(np.array([[1, 2, 3, 4, 5]]))
+    assert (c[0], fit[0]) == (5, 2)
+    # nothing detected
+    assert [f[0] for f in figures_from_blocks(np.array([[-1, -1]]))] == [0, 0, 0, 0]
+
+
+def test_expand_loops_and_skips_zero_repetitions():
+    genes = parse_turn_cycle("12:2,5:0,3:1")
+    ids, still = expand(genes[None], 7)
+    assert ids[0].tolist() == [12, 12, 3, 12, 12, 3, 12]
+    assert not still[0]
+    ids, still = expand(np.zeros((1, 9, 2), dtype=int), 5)
+    assert still[0]
+
+
+def test_simulated_path_is_the_model_rollout():
+    genes = parse_turn_cycle("12:14,3:10,12:3,19:10")
+    cov = simulate(M, genes, 120, keep_paths=True)
+    ids, _ = expand(genes[None], 120)
+    np.testing.assert_allclose(cov.poses[0], rollout(M, (45, 30, 90), ids[0]), atol=1e-9)
+    again = coverage_of_poses(cov.poses[0])
+    assert again.row() == cov.row(0)
+
+
+def test_standing_still_turn_cycle():
+    cov = simulate(M, np.zeros((9, 2), dtype=int), 50, keep_paths=True)
+    assert np.all(cov.poses[0] == [45, 30, 90])
+    assert cov.row(0) == {"blocks_covered": 1, "blocks_covered_once": 1, "fitness": 1,
+                          "repeat_visits": 0}
+
+
+def _random_genes(rng, n):
+    return np.stack([rng.integers(0, 32, (n, 9)), rng.integers(0, 64, (n, 9))], -1)
+
+
+@pytest.mark.parametrize("effects", [(), (Effect("transition", {"alpha": 0.3}),),
+                                     (Effect("floor_slope", {"s": 1.0, "theta": 45}),)])
+def test_population_batch_equals_one_at_a_time(effects):
+    rng = np.random.default_rng(3)
+    genes = _random_genes(rng, 150)  # spans several inner chunks
+    genes[7, :, 1] = 0
+    batch = simulate(M, genes, 200, effects)
+    for i in range(0, 150, 13):
+        one = simulate(M, genes[i], 200, effects)
+        assert one.row(0) == batch.row(i)
+
+
+def test_model_population_batch_equals_one_table_at_a_time():
+    rng = np.random.default_rng(4)
+    tables = M[None] + rng.normal(size=(5, 32, 3))
+    genes = _random_genes(rng, 3)
+    batch = simulate(tables, genes)
+    assert batch.fitness.shape == (5, 3)
+    for m in range(5):
+        one = simulate(tables[m], genes)
+        assert np.array_equal(one.score(), batch.score()[m])
+
+
+def test_gap_between_model_and_actual_is_visible():
+    genes = parse_turn_cycle("12:14,3:10,12:3,19:10")
+    a = simulate(M, genes, keep_paths=True)
+    b = simulate(shifted_table().rows, genes, keep_paths=True)
+    assert not np.allclose(a.poses[0, -1], b.poses[0, -1])
+
+
+@pytest.mark.parametrize("text, message", [
+    ("12:14,32:1", "gait cycle id 32 outside 0..31"),
+    ("12:64", "repetitions 64 outside 0..63"),
+    ("12:-1", "repetitions -1 outside"),
+    ("12", "expected 'id:reps'"),
+    ("", "empty"),
+    (",".join(["1:1"] * 10), "at most 9"),
+])
+def test_turn_cycle_errors(text, message):
+    with pytest.raises(InputError, match=message):
+        parse_turn_cycle(text)
+
+
+def test_turn_cycle_round_trip():
+    assert format_turn_cycle(parse_turn_cycle("12:14, 3:10,19:0")) == "12:14,3:10"
+
+
+def test_negative_budget_rejected():
+    with pytest.raises(InputError, match="budget"):
+        simulate(M, parse_turn_cycle("12:1"), -5)

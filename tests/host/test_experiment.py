@@ -1,0 +1,125 @@
+"""The experiment command end to end (small sizes): files, resume, jobs, and the CLI's errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from pac_host.cli.main import main
+
+SMALL = ["--seeds", "2", "--generations", "80", "--initial-generations", "30",
+         "--optimum-runs", "2", "--optimum-generations", "60"]
+
+
+def _run(args):
+    return CliRunner().invoke(main, args, catch_exceptions=False)
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    out = tmp_path_factory.mktemp("exp")
+    res = _run(["experiment", *SMALL, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    return out, res.output
+
+
+def test_experiment_writes_summary_log_and_plots(finished):
+    out, text = finished
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["format"] == "pac-experiment/1"
+    assert len(summary["runs"]) == 4
+    for r in summary["runs"]:
+        assert r["generations"] == [0, 40, 80]
+        assert len(r["coverage"]) == 3 and all(c <= summary["optimum"] for c in r["coverage"])
+        assert len(r["final_model_error"]) == 32
+        assert r["reached_optimum_at"] is None or r["reached_optimum_at"] in r["generations"]
+    comp = summary["comparison"]
+    assert set(comp["methods"]) == {"full", "partial"}
+    assert 0 <= comp["tests"]["reached_optimum_fisher_exact_p"] <= 1
+    lines = (out / "log.jsonl").read_text().splitlines()
+    assert len(lines) == 12  # 2 seeds x 2 methods x 3 punctuations
+    assert {json.loads(x)["method"] for x in lines} == {"full", "partial"}
+    for name in ("coverage_full.png", "coverage_partial.png", "coverage_means.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "seeds reached the optimum" in text and "summary:" in text
+
+
+def test_jobs_do_not_change_results(finished, tmp_path):
+    out, _ = finished
+    res = _run(["experiment", *SMALL, "--jobs", "2", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    a = json.loads((out / "summary.json").read_text())["runs"]
+    b = json.loads((tmp_path / "summary.json").read_text())["runs"]
+    assert a == b
+
+
+def test_interrupted_experiment_resumes_to_the_same_summary(finished, tmp_path):
+    out, _ = finished
+    lines = (out / "log.jsonl").read_text().splitlines()
+    # keep one complete run and half of another, as if killed mid-run
+    first = [x for x in lines if json.loads(x)["seed"] == 0 and json.loads(x)["method"] == "full"]
+    partial = [x for x in lines if json.loads(x)["seed"] == 1 and json.loads(x)["method"] == "full"]
+    (tmp_path / "log.jsonl").write_text("\n".join(first + partial[:1]) + "\n")
+    res = _run(["experiment", *SMALL, "--out", str(tmp_path)])
+    assert res.exit_code == 2 and "--resume" in res.output
+    res = _run(["experiment", *SMALL, "--out", str(tmp_path), "--resume"])
+    assert res.exit_code == 0, res.output
+    a = json.loads((out / "summary.json").read_text())
+    b = json.loads((tmp_path / "summary.json").read_text())
+    key = lambda r: (r["method"], r["seed"])  # noqa: E731
+    assert [(key(r), r["coverage"], r["final_model_error"]) for r in a["runs"]] == \
+        [(key(r), r["coverage"], r["final_model_error"]) for r in b["runs"]]
+    assert sorted((tmp_path / "log.jsonl").read_text().splitlines()) == sorted(lines)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["simulate", "--turn-cycle", "12:14,40:2"], "gait cycle id 40 outside 0..31"),
+    (["simulate", "--turn-cycle", "12:99"], "repetitions 99 outside 0..63"),
+    (["simulate", "--turn-cycle", "12:9", "--budget", "-3"], "non-negative"),
+    (["simulate", "--turn-cycle", "12:9", "--effect", "gremlin:x=1"], "unknown effect 'gremlin'"),
+    (["simulate", "--turn-cycle", "12:9", "--table", "nope.json"], "nope.json: cannot read"),
+    (["table", "show", "--table", "shiftd"], "shiftd: cannot read"),
+    (["experiment", "--seeds", "0", "--out", "x"], "--seeds must be at least 1"),
+    (["experiment", "--methods", "full,half", "--out", "x"], "--methods takes full"),
+])
+def test_bad_input_is_one_line_and_exit_2(args, message):
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2, res.output
+    assert message in res.output
+    assert "Traceback" not in res.output
+    assert len(res.output.strip().splitlines()) == 1
+
+
+def test_malformed_table_file(tmp_path):
+    (tmp_path / "t.json").write_text('{"format": "pac-gait-table/1", "cycles": []}')
+    res = CliRunner().invoke(main, ["table", "show", "--table", str(tmp_path / "t.json")])
+    assert res.exit_code == 2 and "ids missing" in res.output
+
+
+def test_simulate_json_output():
+    res = _run(["simulate", "--table", "shifted", "--turn-cycle", "12:14,3:10,12:3,19:10",
+                "--budget", "30", "--json"])
+    doc = json.loads(res.output)
+    assert set(doc) == {"poses", "blocks_covered", "blocks_covered_once", "fitness",
+                        "repeat_visits"}
+    assert len(doc["poses"]) == 31 and doc["poses"][0] == [45.0, 30.0, 90.0]
+
+
+def test_table_export_then_use(tmp_path):
+    path = tmp_path / "t.json"
+    res = _run(["table", "export", str(path), "--table", "shifted",
+                "--effect", "yaw_bias:delta=2"])
+    assert res.exit_code == 0
+    doc = json.loads(path.read_text())
+    assert doc["effects"] == [{"name": "yaw_bias", "params": {"delta": 2.0}}]
+    shown = _run(["table", "show", "--table", str(path)]).output
+    assert "effect: yaw_bias:delta=2" in shown
+
+
+def test_simulate_draws_the_path(tmp_path):
+    png = tmp_path / "path.png"
+    res = _run(["simulate", "--turn-cycle", "12:14,3:10,12:3,19:10", "--plot", str(png)])
+    assert res.exit_code == 0
+    assert png.read_bytes()[:4] == b"\x89PNG" and png.stat().st_size > 10_000

@@ -1,0 +1,96 @@
+"""The PAL loop: the paper's perturbations, the operational rule, reproducibility."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pac_host import pal
+from pac_host.coverage import parse_turn_cycle
+from pac_host.model import measured_table, shifted_table
+
+SMALL = pal.PALConfig(cga_population=24, model_population=16, generations=80,
+                      model_generations=5)
+
+
+def test_perturbations_follow_the_paper():
+    rng = np.random.default_rng(0)
+    best = parse_turn_cycle("12:14,3:10,12:3,19:10")
+    for _ in range(50):
+        a, b = pal.perturbations(best, rng, SMALL)
+        assert np.array_equal(a[:, 0], best[:, 0]) and np.array_equal(b[:, 0], best[:, 0])
+        nz = best[:, 1] > 0
+        assert np.all(np.abs(a[nz, 1] - best[nz, 1]) == 1)  # +-1 on each non-zero count
+        assert np.all(a[~nz, 1] == 0)
+        assert np.all((b[:, 1] == best[:, 1]) | (b[:, 1] == 50))
+    rate = np.mean([np.mean(pal.perturbations(best, rng, SMALL)[1][:, 1] == 50)
+                    for _ in range(400)])
+    assert 0.2 < rate < 0.3
+
+
+class _ScriptedRobot:
+    """A robot whose results are given: to check the operational-solution rule."""
+
+    def __init__(self, fitnesses):
+        self.fitnesses = list(fitnesses)
+
+    def run_tests(self, tests):
+        f = self.fitnesses.pop(0)
+        return [pal.TestResult(f, f, f, 0)] + [pal.TestResult(1, 1, 1, 0)] * 2
+
+
+def test_operational_solution_replaced_only_when_better_on_the_robot():
+    rng = np.random.default_rng(1)
+    state = pal.initial_state(measured_table(), rng, SMALL)
+    robot = _ScriptedRobot([5, 3, 8, 8])
+    seen = []
+    for _ in range(4):
+        state, rec = pal.punctuate(state, robot, rng, SMALL)
+        seen.append((rec["operational_fitness"], rec["operational_replaced"]))
+        state, _ = pal.advance_cga(state, 5, rng, SMALL)
+    assert seen == [(5, True), (5, False), (8, True), (8, False)]
+
+
+def _run(seed, method="partial"):
+    cfg = pal.PALConfig(**{**SMALL.__dict__, "method": method})
+    rng = np.random.default_rng(seed)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    records = []
+    pal.run(state, pal.SimulatedRobot(shifted_table()), rng, cfg,
+            lambda s, r: records.append(r))
+    return records
+
+
+def test_pal_is_reproducible_from_its_seed():
+    a, b, c = _run(3), _run(3), _run(4)
+    assert a == b
+    assert a != c
+    assert [r["generation"] for r in a] == [0, 40, 80]
+
+
+def test_pal_records_say_what_happened():
+    rec = _run(5)[0]
+    assert len(rec["tests"]) == 3 and len(rec["observed"]) == 3
+    assert rec["model_error_after"] <= rec["model_error_before"]
+    assert set(rec["used_gait_ids"]) == {int(g.split(":")[0]) for t in rec["tests"]
+                                         for g in t.split(",")}
+
+
+def test_state_round_trip_resumes_bit_for_bit():
+    import json
+
+    cfg = pal.PALConfig(**{**SMALL.__dict__, "generations": 120})
+    robot = pal.SimulatedRobot(shifted_table())
+    rng = np.random.default_rng(9)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    whole = []
+    pal.run(state, robot, rng, cfg, lambda s, r: whole.append(r))
+
+    rng = np.random.default_rng(9)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    state, first = pal.punctuate(state, robot, rng, cfg)
+    saved = json.loads(json.dumps(pal.state_to_json(state, rng)))  # through a file, as it were
+    state, rng = pal.state_from_json(saved)
+    state, _ = pal.advance_cga(state, cfg.interval, rng, cfg)
+    rest = []
+    pal.run(state, robot, rng, cfg, lambda s, r: rest.append(r))
+    assert [first] + rest == whole
