@@ -14,7 +14,14 @@ diagnosis without telling it the effect. Categories:
   no_significant_gap;
 - withheld: one effect, removed from the library; scores how often the verdict is
   partly_unexplained rather than a confident wrong name;
-- single_high_noise: singles with three times the tracker noise (no target).
+- single_high_noise: singles with three times the tracker noise (no target);
+- table_error: no effect, but the model is the measured table while the robot is a
+  re-measured one (every entry off by 0.3 cm / 0.5 deg): a gap no effect explains;
+- weak_short: singles at a quarter of the moderate magnitude on 12 runs of 30 gait cycles with
+  high noise: where the method runs out of data (no target; shows the failure modes).
+
+Shrink is 1 - (held-out rollout end error after) / (before); the excess shrink divides by the
+part above the oracle's error (the true model's own error, tracker noise alone).
 
 Usage: ``python bench/run.py --only diagnose [--quick]`` or ``make bench-diagnose``.
 """
@@ -26,14 +33,17 @@ import time
 import numpy as np
 
 from pac_host.diagnose import diagnose
+from pac_host.diagnose.residuals import batch_of, end_errors
 from pac_host.diagnose.synth import MODERATE, blind_case, moderate_effect
-from pac_host.model.effects import EFFECT_SPECS
-from pac_host.model.table import GaitTable
+from pac_host.model.effects import EFFECT_SPECS, Effect
+from pac_host.model.table import GaitTable, measured_table
 
 NAMES = list(EFFECT_SPECS)
 NOISE = {"moderate": (0.5, 1.0), "high": (1.5, 3.0)}
 SEED = 2024
-KINDS = ("single", "pair", "null", "withheld", "single_high_noise")
+KINDS = ("single", "pair", "null", "withheld", "single_high_noise", "table_error", "weak_short")
+WEAK = 0.25  # weak_short cases: a quarter of a moderate magnitude ...
+SHORT = (12, 30)  # ... on 12 runs of 30 gait cycles, with high tracker noise
 
 
 def _param_error(true, est) -> float:
@@ -52,23 +62,42 @@ def _param_error(true, est) -> float:
     return float(abs(est.params[k] - true.params[k]) / abs(ref))
 
 
-def _case(kind: str, index: int, effects, noise, library=None, perturb=False) -> dict:
+def _weaker(effect: Effect, f: float) -> Effect:
+    """The effect moved towards neutral: parameter = neutral + f (parameter - neutral)."""
+    if effect.name == "turn_shift":
+        return effect
+    if effect.name == "floor_slope":
+        return Effect("floor_slope", {"s": f * effect.params["s"],
+                                      "theta": effect.params["theta"]})
+    (p,) = EFFECT_SPECS[effect.name].params
+    return Effect(effect.name, {p.name: p.neutral + f * (effect.params[p.name] - p.neutral)})
+
+
+def _case(kind: str, index: int, effects, noise, library=None, perturb=False,
+          model_rows=None, size=(40, 60)) -> dict:
     rng = np.random.default_rng([SEED, KINDS.index(kind), index])
-    rows, fit, hold = blind_case(rng, effects, pos_noise_cm=noise[0], heading_noise_deg=noise[1],
+    rows, fit, hold = blind_case(rng, effects, n_runs=size[0], n_cycles=size[1],
+                                 pos_noise_cm=noise[0], heading_noise_deg=noise[1],
                                  perturb_table=perturb)
     t0 = time.perf_counter()
-    d = diagnose(GaitTable(rows), fit, hold, rng, library)
+    d = diagnose(GaitTable(rows if model_rows is None else model_rows), fit, hold, rng, library)
     wall = time.perf_counter() - t0
+    # the oracle: the true model's own held-out rollout error (tracker noise alone)
+    oracle = float(end_errors(rows, batch_of(hold), effects).mean())
+    before, after = d.holdout["rollout_cm_before"], d.holdout["rollout_cm_after"]
+    excess = (before - after) / (before - oracle) if before > oracle else float("nan")
     sel = [e.name for e in d.selected]
     return {"kind": kind, "true": [str(e) for e in effects],
             "true_names": [e.name for e in effects],
             "selected": sel, "selected_effects": [str(e) for e in d.selected],
             "verdict": d.verdict, "shrink": d.holdout["shrink"],
             "rollout_cm_before": d.holdout["rollout_cm_before"],
-            "rollout_cm_after": d.holdout["rollout_cm_after"],
+            "rollout_cm_after": d.holdout["rollout_cm_after"], "rollout_cm_oracle": oracle,
+            "excess_shrink": excess,
             "param_error": [_param_error(t, next((e for e in d.selected if e.name == t.name),
                                                  None)) for t in effects],
-            "alike": d.selection.alike, "wall_s": round(wall, 3)}
+            "alike": d.selection.alike, "informative": d.informative,
+            "wall_s": round(wall, 3)}
 
 
 def _rng_effects(rng, names):
@@ -81,6 +110,8 @@ def run(quick: bool = False) -> dict:
     n_null = 6 if quick else 60
     n_withheld = 1 if quick else 5
     n_high = 0 if quick else 3
+    n_table = 0 if quick else 10
+    n_weak = 0 if quick else 5
     pick = np.random.default_rng(SEED)
     cases = []
     for name in NAMES:
@@ -104,7 +135,30 @@ def run(quick: bool = False) -> dict:
             eff = [moderate_effect(name, np.random.default_rng([SEED, 4, NAMES.index(name), i]))]
             cases.append(_case("single_high_noise", len(cases), eff, NOISE["high"],
                                perturb=i % 2 == 1))
+    for _ in range(n_table):  # the model is the measured table, the robot a re-measured one
+        cases.append(_case("table_error", len(cases), [], NOISE["moderate"], perturb=True,
+                           model_rows=measured_table().rows))
+    for name in NAMES:
+        for i in range(n_weak):
+            eff = [_weaker(moderate_effect(name, np.random.default_rng([SEED, 6, NAMES.index(name),
+                                                                        i])), WEAK)]
+            cases.append(_case("weak_short", len(cases), eff, NOISE["high"], size=SHORT,
+                               perturb=i % 2 == 1))
     return summarize(cases, quick)
+
+
+def _named_or_alike(c: dict) -> bool:
+    """The true effect is named first, or named as alike to the first named effect."""
+    if not c["selected"]:
+        return False
+    first = c["selected"][0]
+    return first in c["true_names"] or bool(set(c["alike"].get(first, [])) & set(c["true_names"]))
+
+
+def _confident_wrong(c: dict) -> bool:
+    """A wrong effect named, without an alike hint or a caution, and the gap called explained."""
+    return (bool(c["selected"]) and c["verdict"] == "explained" and c["informative"]
+            and not _named_or_alike(c))
 
 
 def _frac(xs) -> float:
@@ -127,6 +181,11 @@ def summarize(cases: list[dict], quick: bool) -> dict:
             "exact": _frac(c["selected"] == [name] for c in cs),
             "median_param_error": round(float(np.median(errs)), 4) if errs else None,
             "median_shrink": round(float(np.median([c["shrink"] for c in cs])), 4),
+            "median_rollout_cm": [round(float(np.median([c[k] for c in cs])), 2) for k in
+                                  ("rollout_cm_before", "rollout_cm_after",
+                                   "rollout_cm_oracle")],
+            "median_excess_shrink": round(float(np.nanmedian([c["excess_shrink"] for c in cs])),
+                                          4),
             "named_instead": sorted({c["selected"][0] for c in cs
                                      if c["selected"] and c["selected"][0] != name}),
         }
@@ -152,6 +211,7 @@ def summarize(cases: list[dict], quick: bool) -> dict:
         "data": "40 runs x 60 gait cycles, 30% held out, CGA-like turn cycles",
         "cases": {k: len(v) for k, v in by.items()},
         "single_top1": top1,
+        "single_informative": _frac(c["informative"] for c in singles),
         "single_exact": _frac(c["selected"] == c["true_names"] for c in singles),
         "single_median_shrink": shrink_med,
         "single_shrink_at_least_80pct": _frac(s >= 0.8 for s in shrinks),
@@ -159,7 +219,8 @@ def summarize(cases: list[dict], quick: bool) -> dict:
         "pair_recall": _frac(len(set(c["selected"]) & set(c["true_names"])) / 2
                              for c in by["pair"]),
         "pair_both_found": _frac(set(c["true_names"]) <= set(c["selected"]) for c in by["pair"]),
-        "pair_misses": [{"true": c["true"], "selected": c["selected_effects"]}
+        "pair_misses": [{"true": c["true"], "selected": c["selected_effects"],
+                         "verdict": c["verdict"]}
                         for c in by["pair"] if not set(c["true_names"]) <= set(c["selected"])],
         "null_false_positive": fp,
         "null_selected_any": _frac(bool(c["selected"]) for c in by["null"]),
@@ -170,6 +231,23 @@ def summarize(cases: list[dict], quick: bool) -> dict:
         "high_noise_top1": _frac(c["selected"][:1] == c["true_names"] for c in high),
         "high_noise_median_shrink": (round(float(np.median([c["shrink"] for c in high])), 4)
                                      if high else None),
+        "table_error_verdicts": {v: sum(c["verdict"] == v for c in by["table_error"])
+                                 for v in ("no_significant_gap", "explained",
+                                           "partly_unexplained")},
+        "table_error_named": [c["selected"] for c in by["table_error"]],
+        "single_median_excess_shrink": round(float(np.nanmedian(
+            [c["excess_shrink"] for c in singles])), 4),
+        "weak_short": {
+            "what": f"{WEAK} x moderate magnitude, {SHORT[0]} runs x {SHORT[1]} cycles, high noise",
+            "top1": _frac(c["selected"][:1] == c["true_names"] for c in by["weak_short"]),
+            "verdicts": {v: sum(c["verdict"] == v for c in by["weak_short"])
+                         for v in ("no_significant_gap", "explained", "partly_unexplained")},
+            "named_or_alike": _frac(_named_or_alike(c) for c in by["weak_short"]),
+            "confident_wrong": _frac(_confident_wrong(c) for c in by["weak_short"]),
+            "cases": [{"true": c["true"], "selected": c["selected_effects"],
+                       "verdict": c["verdict"], "alike": c["alike"],
+                       "informative": c["informative"]} for c in by["weak_short"]],
+        },
         "median_diagnosis_s": round(float(np.median([c["wall_s"] for c in cases])), 3),
         "max_diagnosis_s": round(float(np.max([c["wall_s"] for c in cases])), 3),
         "failures": [c for c in singles if c["selected"][:1] != c["true_names"]],

@@ -53,6 +53,7 @@ def test_diagnose_end_to_end(runs_file, tmp_path):
     assert set(c["holdout"]) >= {"step_rms_before", "step_rms_after", "rollout_cm_before",
                                  "rollout_cm_after", "shrink"}
     assert doc["selected"] == ["yaw_bias"]
+    assert doc["informative"] is True
     h = doc["holdout"]
     assert h["runs"] == 9 and h["shrink"] > 0.8
     assert h["shrink_ci"][0] <= h["shrink"] <= h["shrink_ci"][1]

@@ -98,4 +98,5 @@ def test_short_runs_are_reported_as_uninformative():
     d = diagnose(GaitTable(rows), fit, hold, rng)
     text = " ".join(d.notes)
     assert "too short" in text
+    assert not d.informative
     assert "battery_sag" in d.identifiability["invisible"]

@@ -240,11 +240,13 @@ def _intervals(prob, lay, theta, ints, res: FitResult, prof) -> dict:
         jac = _jacobian(prob, lay, theta, ints, f0)
         try:
             cov = s2 * np.linalg.inv(jac.T @ jac)
-        except np.linalg.LinAlgError:
-            cov = np.full((lay.size, lay.size), np.inf)
+        except np.linalg.LinAlgError:  # a parameter the data do not constrain
+            cov = np.full((lay.size, lay.size), np.nan)
         for n, sl, e in zip(lay.names, lay.slices, res.effects, strict=True):
             c = cov[sl, sl]
-            if n == "floor_slope":
+            if not np.all(np.isfinite(c)):
+                sd = {name: math.nan for name in e.params}
+            elif n == "floor_slope":
                 u, v = theta[sl]
                 s = math.hypot(u, v) or 1e-12
                 g_s = np.array([u / s, v / s])

@@ -11,7 +11,10 @@
    bootstrap interval over held-out runs of the rollout shrink.
 6. Whether the runs can tell the effects apart at all (:func:`identifiability`): each effect's
    whitened signature at a moderate magnitude on the fitting runs; an effect whose signature
-   is too weak cannot be seen, and two effects whose signatures are nearly parallel look alike.
+   is too weak cannot be seen, and two effects look alike when what tells their signatures
+   apart is too weak.
+   A selected effect that looks alike another is reported with it ("consistent with A or B")
+   and the diagnosis is marked not informative: the runs cannot tell the two apart.
 """
 
 from __future__ import annotations
@@ -53,7 +56,6 @@ REFERENCE = {
                     Effect("floor_slope", {"s": 0.3, "theta": 90.0})],
 }
 MIN_SIGNAL = 25.0  # whitened |signature|^2 (about a 5-sigma effect) for "visible"
-ALIKE_CORR = 0.95
 MIN_FIT_STEPS = 60
 
 # which new test runs would separate two effects that look alike on the runs given
@@ -86,6 +88,7 @@ class Diagnosis:
     identifiability: dict
     notes: list[str]
     example_paths: dict  # the held-out run with the largest gap: observed, model, corrected
+    informative: bool  # False: runs too short or too few repeats for the verdict to carry weight
 
     @property
     def selected(self) -> list[Effect]:
@@ -170,6 +173,17 @@ def diagnose(
         "structure_test": sel.structure,
     }
     ident = identifiability(fit_p, library_names(library, base))
+    # an effect whose signature on these runs is nearly that of another is named with it
+    confounded = False
+    for e in sel.selected:
+        for pair in ident["alike"]:
+            if e.name in (pair["a"], pair["b"]):
+                other = pair["b"] if pair["a"] == e.name else pair["a"]
+                if other not in {x.name for x in sel.selected}:
+                    confounded = True
+                    sel.alike.setdefault(e.name, [])
+                    if other not in sel.alike[e.name]:
+                        sel.alike[e.name].append(other)
     notes = _notes(noise, fit_b, ident, sel)
     worst = int(np.argmax(end0))
     n = int(hold_b.lengths[worst])
@@ -178,7 +192,8 @@ def diagnose(
              "corrected": rollout_poses(table.rows, hold_b,
                                         base + tuple(sel.selected))[worst, : n + 1]}
     return Diagnosis(table, tuple(r.run_id for r in fit_runs), tuple(r.run_id for r in hold_runs),
-                     noise, where, coverage, sel, candidates, holdout, ident, notes, paths)
+                     noise, where, coverage, sel, candidates, holdout, ident, notes, paths,
+                     fit_b.n_steps >= MIN_FIT_STEPS and noise.reliable and not confounded)
 
 
 def _candidate_json(c, hold_p: Problem, rms0: dict, end0: np.ndarray) -> dict:
@@ -207,8 +222,10 @@ def _candidate_json(c, hold_p: Problem, rms0: dict, end0: np.ndarray) -> dict:
 
 def identifiability(prob: Problem, names: Sequence[str]) -> dict:
     """Per effect, how strongly a moderate magnitude shows in the fitting runs (whitened
-    |signature|^2, about the likelihood-ratio statistic it would give), and which pairs have
-    nearly parallel signatures (largest canonical correlation above :data:`ALIKE_CORR`)."""
+    |signature|^2, about the likelihood-ratio statistic it would give), and which pairs look
+    alike: the part of the weaker signature outside the other's span (|d|^2 (1 - rho^2), rho
+    the largest canonical correlation) is below :data:`MIN_SIGNAL`, so even at a moderate
+    magnitude the runs could not tell the two apart."""
     w0 = prob.whitened([])
     bases, strength = {}, {}
     for n in names:
@@ -221,9 +238,12 @@ def identifiability(prob: Problem, names: Sequence[str]) -> dict:
     ns = [n for n in names if bases[n].shape[1]]
     for i, a in enumerate(ns):
         for b in ns[i + 1 :]:
-            corr = float(np.linalg.svd(bases[a].T @ bases[b], compute_uv=False).max())
-            if corr > ALIKE_CORR:
+            corr = min(float(np.linalg.svd(bases[a].T @ bases[b], compute_uv=False).max()), 1.0)
+            # what tells them apart: the part of a signature outside the other's span
+            apart = min(strength[a], strength[b]) * (1.0 - corr**2)
+            if apart < MIN_SIGNAL:
                 pairs.append({"a": a, "b": b, "correlation": round(corr, 4),
+                              "signal_apart": round(apart, 1),
                               "runs_that_separate": SEPARATE.get(frozenset({a, b}),
                                                                  GENERIC_SEPARATE)})
     return {"signal_at_reference": {n: round(v, 1) for n, v in strength.items()},

@@ -64,6 +64,7 @@ def to_json(d: Diagnosis, meta: dict | None = None) -> dict:
         "selection_steps": sel.steps,
         "verdict": d.verdict,
         "verdict_text": VERDICT_TEXT[d.verdict],
+        "informative": d.informative,
         "holdout": d.holdout,
         "identifiability": d.identifiability,
         "notes": d.notes,
@@ -81,7 +82,11 @@ def write_json(doc: dict, path: str | Path) -> None:
 def summary(d: Diagnosis) -> list[str]:
     """The terminal report: verdict, top places of the gap, selected effects, the shrink."""
     h = d.holdout
-    lines = [f"verdict: {d.verdict} ({VERDICT_TEXT[d.verdict]})",
+    lines = [f"verdict: {d.verdict} ({VERDICT_TEXT[d.verdict]})"]
+    if not d.informative:
+        lines.append("caution: these runs are too short or too uniform to tell effects apart "
+                     "reliably (see the notes below); record more varied runs")
+    lines += [
              f"runs: {len(d.fit_ids)} fitting, {len(d.hold_ids)} held out; noise floor "
              f"{d.noise.pos_cm:.2f} cm, {d.noise.heading_deg:.2f} deg"]
     comp = d.where["by_component"]
@@ -93,7 +98,8 @@ def summary(d: Diagnosis) -> list[str]:
         lines.append("where the gap is largest:")
         lines += [f"  {p}" for p in places]
     if d.selected:
-        lines.append("consistent with:")
+        lines.append("partly consistent with:" if d.verdict == "partly_unexplained"
+                     else "consistent with:")
         for e in d.selected:
             ci = d.selection.intervals(e.name)
             params = ", ".join(
