@@ -13,9 +13,15 @@ when all three hold:
   number of candidates compared in the round, must be below ``alpha``;
 - the gain is positive.
 
-Selection stops at the first round whose best candidate fails. The runner-up of an accepted
-round is called alike when the held-out data cannot reject it against the winner (the same
-z-test between the two), and the finding is then worded "consistent with A or B".
+Selection stops at the first round whose best candidate fails. If what is selected then
+leaves structure in the held-out residuals (see Verdict), each selected effect is tried swapped
+for each other effect, keeping a swap when it improves the held-out fit significantly (greedy
+forward steps can start wrong: a strong turn scale first looks like a turn shift), then
+each effect is dropped whose removal the held-out runs do not significantly reject (or whose
+held-out gain is below ln n, a BIC-like price of one parameter). The
+runner-up of an accepted round is called alike when the held-out data cannot reject it
+against the winner (the same z-test between the two), and the finding is then worded
+"consistent with A or B".
 
 Verdict. After selection the held-out residuals are tested for structure that a flexible
 model would still explain: a free offset per gait cycle id and component, an offset on the first
@@ -139,15 +145,71 @@ def forward_select(fit_prob: Problem, hold_prob: Problem, library: Sequence[str]
         ]
         current = {e.name: e for e in best.fit.effects}
         ssr_cur, w0, final = best.fit.ssr, best.w_after, best.fit
+    structure = structure_test(hold_prob, list(current.values()))
+    if current and _unexplained(structure):
+        # greedy selection can take a wrong first step (a strong turn scale looks like a turn
+        # shift); try swapping each selected effect for each other one
+        current, final, w0, swaps = _swap(fit_prob, hold_prob, names, current, final, w0, alpha)
+        if swaps:
+            steps += swaps
+            structure = structure_test(hold_prob, list(current.values()))
+            alike = {k: v for k, v in alike.items() if k in current}
     selected = list(current.values())
-    structure = structure_test(hold_prob, selected)
-    unexplained = (structure["p_value"] < STRUCTURE_ALPHA
-                   or structure["variance_ratio"] > RATIO_MAX)
+    unexplained = _unexplained(structure)
     if unexplained:
         verdict = "partly_unexplained"
     else:
         verdict = "explained" if selected else "no_significant_gap"
     return Selection(first or [], selected, steps, alike, structure, verdict, final)
+
+
+def _unexplained(structure: dict) -> bool:
+    return structure["p_value"] < STRUCTURE_ALPHA or structure["variance_ratio"] > RATIO_MAX
+
+
+def _swap(fit_prob, hold_prob, names, current, final, w0, alpha, max_passes: int = 3):
+    """Swap a selected effect for an unselected one while that improves the held-out fit
+    significantly (the held-out projection test of :func:`forward_select`)."""
+    swaps = []
+    n_hold = hold_prob.n_obs
+    for _ in range(max_passes):
+        best = None
+        for out in current:
+            keep = {k: v for k, v in current.items() if k != out}
+            for new in names:
+                if new in current:
+                    continue
+                fr = fit_effects(fit_prob, list(keep) + [new], start=keep)
+                w1 = hold_prob.whitened(fr.effects)
+                gain = float(w0 @ w0 - w1 @ w1)
+                if best is None or gain > best[0]:
+                    best = (gain, out, new, fr, w1)
+        if best is None or best[0] <= 0:
+            break
+        gain, out, new, fr, w1 = best
+        s2 = max(float(w1 @ w1) / max(n_hold, 1), 1e-12)
+        _, p = stats.projection_p(w0, w1, s2)
+        if p >= alpha or gain < math.log(n_hold):
+            break
+        swaps.append({"effect": new, "replaces": out, "accepted": True, "p_holdout": p,
+                      "gain": gain})
+        current = {e.name: e for e in fr.effects}
+        final, w0 = fr, w1
+    # then drop what the held-out runs no longer need (e.g. an effect left at neutral)
+    for out in list(current):
+        if not swaps or len(current) == 1:
+            break
+        keep = {k: v for k, v in current.items() if k != out}
+        fr = fit_effects(fit_prob, list(keep), start=keep)
+        w_less = hold_prob.whitened(fr.effects)
+        s2 = max(float(w0 @ w0) / max(n_hold, 1), 1e-12)
+        _, p = stats.projection_p(w_less, w0, s2)
+        needed = float(w_less @ w_less - w0 @ w0)
+        if p >= alpha or needed < math.log(n_hold):  # BIC-like: worth a parameter?
+            swaps.append({"effect": out, "dropped": True, "p_holdout": p,
+                          "gain_if_kept": needed})
+            current, final, w0 = {e.name: e for e in fr.effects}, fr, w_less
+    return current, final, w0, swaps
 
 
 def structure_test(prob: Problem, effects: Sequence[Effect]) -> dict:
