@@ -93,6 +93,10 @@ def test_holdout_file_and_library(runs_file, tmp_path):
     assert doc["holdout"]["runs"] == 10
     assert {c["effect"] for c in doc["candidates"]} == {"turn_scale", "stride_scale"}
     assert doc["verdict"] == "partly_unexplained"  # the yaw bias is not in this library
+    assert "what remains unexplained" in r.stdout
+    remaining = doc["holdout"]["where_remaining"]["by_gait_cycle"]
+    assert any(abs(m) > 4 * se for row in remaining  # a clear residual is left somewhere
+               for m, se in zip(row["mean"], row["se"], strict=True))
 
 
 @pytest.mark.parametrize("content, words", [

@@ -171,6 +171,9 @@ def diagnose(
                      "rollout_cm_after": round(float(b), 3)}
                     for rid, a, b in zip(hold_b.run_ids, end0, end1, strict=True)],
         "structure_test": sel.structure,
+        # where the held-out residual left by the selected effects lies
+        "where_remaining": where_report(
+            hold_b, step_residuals(table.rows, hold_b, base + tuple(sel.selected))),
     }
     ident = identifiability(fit_p, library_names(library, base))
     # an effect whose signature on these runs is nearly that of another is named with it

@@ -113,6 +113,11 @@ def summary(d: Diagnosis) -> list[str]:
         if best:
             lines.append(f"best candidate {best['effect']} not significant "
                          f"(held-out p={best['p_value']:.2g}, dBIC={best['delta_bic']:.1f})")
+    if d.verdict == "partly_unexplained":
+        rest = top_places(d.holdout["where_remaining"])
+        if rest:
+            lines.append("what remains unexplained (held-out runs):")
+            lines += [f"  {p}" for p in rest]
     lines.append(
         f"held-out rollout end error {h['rollout_cm_before']:.1f} -> {h['rollout_cm_after']:.1f}"
         f" cm, shrink {100 * h['shrink']:.0f}% (95% CI {100 * h['shrink_ci'][0]:.0f}.."
