@@ -144,7 +144,7 @@ def write_plots(d: Diagnosis, out_dir: str | Path) -> list[Path]:
         ax.bar(ids, [r["mean"][j] for r in rows], yerr=[1.96 * r["se"][j] for r in rows],
                color="tab:blue", capsize=2)
         ax.axhline(0, color="k", lw=0.8)
-        ax.set_ylabel(f"mean d{c}" + (" (deg)" if c == "dH" else " (cm)"))
+        ax.set_ylabel(f"{c} residual" + (" (deg)" if c == "dH" else " (cm)"))
     axes[-1].set_xlabel("gait cycle id")
     axes[0].set_title("one-step residual (observed - model) by gait cycle, 95% intervals")
     fig.tight_layout()
