@@ -121,3 +121,11 @@ def test_bad_input_one_line_exit_2(tmp_path, content, words):
     for w in words:
         assert w in lines[0]
     assert not out.exists()
+
+
+def test_bad_holdout_fraction(runs_file):
+    r = _cli("diagnose", "--model", "measured", "--runs", str(runs_file),
+             "--holdout-fraction", "1.5")
+    assert r.returncode == 2
+    assert r.stderr.strip() == ("pac-host: error: --holdout-fraction must be between 0 and 1, "
+                                "got 1.5")

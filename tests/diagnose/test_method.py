@@ -100,3 +100,51 @@ def test_short_runs_are_reported_as_uninformative():
     assert "too short" in text
     assert not d.informative
     assert "battery_sag" in d.identifiability["invisible"]
+
+
+def test_effects_already_in_the_model_are_kept_and_not_refitted():
+    from pac_host.cga import random_population
+    from pac_host.diagnose import split_runs
+    from pac_host.diagnose.synth import world_runs
+
+    rng = np.random.default_rng(12)
+    known = Effect("yaw_bias", {"delta": 0.6})
+    rows = measured_table().rows
+    varied = random_population(np.random.default_rng(3), 30)  # many gait changes
+    runs = world_runs(rows, [known, Effect("transition", {"alpha": 0.4})], varied, 50, rng)
+    fit, hold = split_runs(runs, 0.3, rng)
+    d = diagnose(GaitTable(rows, (known,)), fit, hold, rng)
+    assert [e.name for e in d.selected] == ["transition"]
+    assert "yaw_bias" not in [c["effect"] for c in d.candidates]
+    assert [e.name for e in d.corrected_table().effects] == ["yaw_bias", "transition"]
+    assert d.verdict == "explained"
+
+
+def test_noise_floor_without_repeated_steps_is_an_upper_bound():
+    from pac_host.diagnose.residuals import step_residuals
+    from pac_host.diagnose.synth import world_runs
+
+    rng = np.random.default_rng(2)
+    alternate = np.array([[[12, 1], [28, 1]] + [[0, 0]] * 7] * 4)  # never 3 same steps in a row
+    runs = world_runs(measured_table().rows, [], alternate, 40, rng)
+    b = batch_of(runs)
+    nf = estimate_noise(b, step_residuals(measured_table().rows, b, []))
+    assert nf.method == "residual_rms_upper_bound" and not nf.reliable
+    assert 0.5 * 0.9 <= nf.pos_cm < 0.5 * 1.3
+    assert 1.0 * 0.9 <= nf.heading_deg < 1.0 * 1.3
+
+
+def test_an_effect_the_held_out_runs_cannot_show_is_flagged(cycles):
+    from pac_host.diagnose import split_runs
+    from pac_host.diagnose.synth import world_runs
+
+    rng = np.random.default_rng(12)
+    runs = world_runs(measured_table().rows, [Effect("transition", {"alpha": 0.4})],
+                      cycles[:30], 50, rng)
+    fit, hold = split_runs(runs, 0.3, rng)
+    # these turn cycles change gait once in all fitting runs and never in the held-out ones
+    assert np.ptp(batch_of(hold).ids, axis=1).max() == 0
+    d = diagnose(GaitTable(measured_table().rows), fit, hold, rng)
+    assert d.selected == []
+    assert not d.informative
+    assert any(n.startswith("transition fits the fitting runs") for n in d.notes)

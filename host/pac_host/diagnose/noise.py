@@ -75,7 +75,7 @@ def estimate_noise(batch: Batch, residuals: np.ndarray | None = None) -> NoiseFl
     if residuals is None:
         raise ValueError("no repeated steps: residuals are needed for the fallback estimate")
     flat = residuals[batch.mask]
-    pos = float(np.sqrt((flat[:, :2] ** 2).mean() / 4.0))
+    pos = float(np.sqrt((flat[:, :2] ** 2).mean() / 2.0))  # each component: 2 sigma_p^2
     head = float(np.sqrt((flat[:, 2] ** 2).mean() / 2.0))
     return NoiseFloor(max(pos, FLOOR), max(head, FLOOR), "residual_rms_upper_bound",
                       int(batch.mask.sum()), False)

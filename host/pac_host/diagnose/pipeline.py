@@ -38,7 +38,13 @@ from pac_host.diagnose.residuals import (
     where_report,
 )
 from pac_host.diagnose.runs import Run
-from pac_host.diagnose.select import Selection, forward_select, holdout_figures, library_names
+from pac_host.diagnose.select import (
+    ALPHA,
+    Selection,
+    forward_select,
+    holdout_figures,
+    library_names,
+)
 from pac_host.errors import InputError
 from pac_host.model.effects import EFFECT_SPECS, Effect
 from pac_host.model.table import GaitTable
@@ -187,7 +193,13 @@ def diagnose(
                     sel.alike.setdefault(e.name, [])
                     if other not in sel.alike[e.name]:
                         sel.alike[e.name].append(other)
+    # significant on the fitting runs, but the held-out runs cannot show it: inconclusive
+    untestable = [c.name for c in sel.last_round if c.p_lr < ALPHA and c.delta_bic < 0
+                  and c.signal_holdout < MIN_SIGNAL and c.name not in sel_names(sel)]
     notes = _notes(noise, fit_b, ident, sel)
+    notes += [f"{n} fits the fitting runs (likelihood-ratio p < {ALPHA}) but the held-out runs "
+              "cannot show it; hold out runs that exercise it, or more runs"
+              for n in untestable]
     worst = int(np.argmax(end0))
     n = int(hold_b.lengths[worst])
     paths = {"run_id": hold_b.run_ids[worst], "observed": hold_b.poses[worst, : n + 1],
@@ -196,7 +208,12 @@ def diagnose(
                                         base + tuple(sel.selected))[worst, : n + 1]}
     return Diagnosis(table, tuple(r.run_id for r in fit_runs), tuple(r.run_id for r in hold_runs),
                      noise, where, coverage, sel, candidates, holdout, ident, notes, paths,
-                     fit_b.n_steps >= MIN_FIT_STEPS and noise.reliable and not confounded)
+                     fit_b.n_steps >= MIN_FIT_STEPS and noise.reliable and not confounded
+                     and not untestable)
+
+
+def sel_names(sel: Selection) -> set[str]:
+    return {e.name for e in sel.selected}
 
 
 def _candidate_json(c, hold_p: Problem, rms0: dict, end0: np.ndarray) -> dict:
@@ -217,7 +234,8 @@ def _candidate_json(c, hold_p: Problem, rms0: dict, end0: np.ndarray) -> dict:
                     "rollout_cm_before": round(float(end0.mean()), 3),
                     "rollout_cm_after": round(float(end1.mean()), 3),
                     "shrink": round(float(shrink), 4),
-                    "loglik_gain": round(c.gain / 2.0, 3), "z": round(c.z, 3)},
+                    "loglik_gain": round(c.gain / 2.0, 3), "z": round(c.z, 3),
+                    "signal": round(c.signal_holdout, 3)},
         "p_value": c.p_holdout,
         "delta_bic": round(c.delta_bic, 3),
     }

@@ -66,6 +66,7 @@ class Candidate:
     gain: float  # held-out whitened SSR before - after
     z: float
     p_holdout: float
+    signal_holdout: float  # |d|^2: how strongly the held-out runs can show the fitted change
     w_after: np.ndarray = field(repr=False)
 
     @property
@@ -82,6 +83,7 @@ class Selection:
     structure: dict
     verdict: str
     final_fit: FitResult | None = None  # the joint fit of the selected effects
+    last_round: list[Candidate] = field(default_factory=list)  # the round that stopped it
 
     def intervals(self, name: str) -> dict:
         """95% intervals of a selected effect's parameters from the joint fit."""
@@ -106,8 +108,9 @@ def _round(fit_prob: Problem, hold_prob: Problem, names: list[str], current: dic
         gain = float(w0 @ w0 - w1 @ w1)
         s2 = max(float(w1 @ w1) / max(n_hold, 1), 1e-12)
         z, p = stats.projection_p(w0, w1, s2)
+        d = w0 - w1
         out.append(Candidate(n, fr, lr, stats.chi2_sf(lr, df), -lr + df * math.log(n_fit),
-                             gain, z, p, w1))
+                             gain, z, p, float(d @ d), w1))
     out.sort(key=lambda c: -c.gain)
     return out
 
@@ -123,6 +126,7 @@ def forward_select(fit_prob: Problem, hold_prob: Problem, library: Sequence[str]
     first: list[Candidate] | None = None
     final: FitResult | None = None
     steps, alike = [], {}
+    cands: list[Candidate] = []
     while len(current) < max_effects:
         remaining = [n for n in names if n not in current]
         if not remaining:
@@ -137,6 +141,7 @@ def forward_select(fit_prob: Problem, hold_prob: Problem, library: Sequence[str]
                       "p_lr": best.p_lr, "delta_bic": best.delta_bic, "gain": best.gain})
         if not ok:
             break
+        cands = []
         alike[best.name] = [
             c.name for c in cands[1:]
             if c.gain > 0 and stats.projection_p(c.w_after, best.w_after,
@@ -160,7 +165,7 @@ def forward_select(fit_prob: Problem, hold_prob: Problem, library: Sequence[str]
         verdict = "partly_unexplained"
     else:
         verdict = "explained" if selected else "no_significant_gap"
-    return Selection(first or [], selected, steps, alike, structure, verdict, final)
+    return Selection(first or [], selected, steps, alike, structure, verdict, final, cands)
 
 
 def _unexplained(structure: dict) -> bool:
