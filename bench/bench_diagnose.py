@@ -96,7 +96,7 @@ def _case(kind: str, index: int, effects, noise, library=None, perturb=False,
             "excess_shrink": excess,
             "param_error": [_param_error(t, next((e for e in d.selected if e.name == t.name),
                                                  None)) for t in effects],
-            "alike": d.selection.alike, "informative": d.informative,
+            "alike": d.selection.alike, "informative": d.informative, "notes": d.notes,
             "wall_s": round(wall, 3)}
 
 
@@ -246,11 +246,14 @@ def summarize(cases: list[dict], quick: bool) -> dict:
             "confident_wrong": _frac(_confident_wrong(c) for c in by["weak_short"]),
             "cases": [{"true": c["true"], "selected": c["selected_effects"],
                        "verdict": c["verdict"], "alike": c["alike"],
-                       "informative": c["informative"]} for c in by["weak_short"]],
+                       "informative": c["informative"], "notes": c["notes"]}
+                      for c in by["weak_short"]],
         },
         "median_diagnosis_s": round(float(np.median([c["wall_s"] for c in cases])), 3),
         "max_diagnosis_s": round(float(np.max([c["wall_s"] for c in cases])), 3),
         "failures": [c for c in singles if c["selected"][:1] != c["true_names"]],
+        "single_uninformative": [{"true": c["true"], "selected": c["selected_effects"],
+                                  "notes": c["notes"]} for c in singles if not c["informative"]],
     }
     res["targets"] = {
         "single_top1": {"value": top1, "target": ">= 0.95", "met": top1 >= 0.95},

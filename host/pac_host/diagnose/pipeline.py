@@ -193,9 +193,12 @@ def diagnose(
                     sel.alike.setdefault(e.name, [])
                     if other not in sel.alike[e.name]:
                         sel.alike[e.name].append(other)
-    # significant on the fitting runs, but the held-out runs cannot show it: inconclusive
-    untestable = [c.name for c in sel.last_round if c.p_lr < ALPHA and c.delta_bic < 0
-                  and c.signal_holdout < MIN_SIGNAL and c.name not in sel_names(sel)]
+    # strong on the fitting runs, but the held-out runs exercise it far less (under a tenth of
+    # what their share of the data would give): they cannot confirm it, so inconclusive
+    share = hold_p.n_obs / fit_p.n_obs
+    untestable = [c.name for c in sel.last_round
+                  if c.p_lr < ALPHA and c.lr > MIN_SIGNAL and c.name not in sel_names(sel)
+                  and c.signal_holdout < 0.1 * c.lr * share]
     notes = _notes(noise, fit_b, ident, sel)
     notes += [f"{n} fits the fitting runs (likelihood-ratio p < {ALPHA}) but the held-out runs "
               "cannot show it; hold out runs that exercise it, or more runs"
