@@ -183,7 +183,7 @@ def diagnose(
     }
     ident = identifiability(fit_p, library_names(library, base))
     # an effect whose signature on these runs is nearly that of another is named with it
-    confounded = False
+    confounded = any(sel.alike.get(e.name) for e in sel.selected)
     for e in sel.selected:
         for pair in ident["alike"]:
             if e.name in (pair["a"], pair["b"]):
@@ -258,8 +258,8 @@ def identifiability(prob: Problem, names: Sequence[str]) -> dict:
         q, r = np.linalg.qr(cols)
         keep = np.abs(np.diag(r)) > 1e-9 * max(np.abs(np.diag(r)).max(), 1e-300)
         bases[n] = q[:, keep]
-    pairs = []
-    ns = [n for n in names if bases[n].shape[1]]
+    pairs = []  # among the effects these runs can show at all
+    ns = [n for n in names if bases[n].shape[1] and strength[n] >= MIN_SIGNAL]
     for i, a in enumerate(ns):
         for b in ns[i + 1 :]:
             corr = min(float(np.linalg.svd(bases[a].T @ bases[b], compute_uv=False).max()), 1.0)

@@ -20,8 +20,8 @@ forward steps can start wrong: a strong turn scale first looks like a turn shift
 each effect is dropped whose removal the held-out runs do not significantly reject (or whose
 held-out gain is below ln n, a BIC-like price of one parameter). The
 runner-up of an accepted round is called alike when the held-out data cannot reject it
-against the winner (the same z-test between the two), and the finding is then worded
-"consistent with A or B".
+against the winner (the same z-test between the two, or a held-out -2 log-likelihood
+difference under 3.84), and the finding is then worded "consistent with A or B".
 
 Verdict. After selection the held-out residuals are tested for structure that a flexible
 model would still explain: a free offset per gait cycle id and component, an offset on the first
@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pac_host.diagnose import stats
-from pac_host.diagnose.fit import FitResult, Problem, fit_effects, n_params
+from pac_host.diagnose.fit import CHI2_1_95, FitResult, Problem, fit_effects, n_params
 from pac_host.diagnose.residuals import end_errors, step_residuals
 from pac_host.model.effects import EFFECT_SPECS, Effect
 from pac_host.model.kinematics import to_body_frame
@@ -126,7 +126,7 @@ def forward_select(fit_prob: Problem, hold_prob: Problem, library: Sequence[str]
     first: list[Candidate] | None = None
     final: FitResult | None = None
     steps, alike = [], {}
-    cands: list[Candidate] = []
+    stopped: list[Candidate] = []
     while len(current) < max_effects:
         remaining = [n for n in names if n not in current]
         if not remaining:
@@ -140,13 +140,13 @@ def forward_select(fit_prob: Problem, hold_prob: Problem, library: Sequence[str]
         steps.append({"effect": best.name, "accepted": bool(ok), "p_holdout_adj": p_adj,
                       "p_lr": best.p_lr, "delta_bic": best.delta_bic, "gain": best.gain})
         if not ok:
+            stopped = cands
             break
-        cands = []
+        s2 = max(float(best.w_after @ best.w_after) / max(n_hold, 1), 1e-12)
         alike[best.name] = [
             c.name for c in cands[1:]
-            if c.gain > 0 and stats.projection_p(c.w_after, best.w_after,
-                                                 max(float(best.w_after @ best.w_after)
-                                                     / max(n_hold, 1), 1e-12))[1] > alpha
+            if c.gain > 0 and (best.gain - c.gain < CHI2_1_95
+                               or stats.projection_p(c.w_after, best.w_after, s2)[1] > alpha)
         ]
         current = {e.name: e for e in best.fit.effects}
         ssr_cur, w0, final = best.fit.ssr, best.w_after, best.fit
@@ -165,7 +165,7 @@ def forward_select(fit_prob: Problem, hold_prob: Problem, library: Sequence[str]
         verdict = "partly_unexplained"
     else:
         verdict = "explained" if selected else "no_significant_gap"
-    return Selection(first or [], selected, steps, alike, structure, verdict, final, cands)
+    return Selection(first or [], selected, steps, alike, structure, verdict, final, stopped)
 
 
 def _unexplained(structure: dict) -> bool:
