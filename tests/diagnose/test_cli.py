@@ -44,7 +44,10 @@ def test_diagnose_end_to_end(runs_file, tmp_path):
     for key in ("noise_floor", "where", "candidates", "selected", "verdict", "holdout"):
         assert key in doc
     assert set(doc["noise_floor"]) >= {"pos_cm", "heading_deg"}
-    assert set(doc["where"]) >= {"by_gait_cycle", "by_component", "by_context"}
+    assert set(doc["where"]) >= {"by_gait_cycle", "by_component", "by_context",
+                                 "rollout_end_cm", "coverage"}
+    assert len(doc["where"]["rollout_end_cm"]["per_run"]) == 30
+    assert doc["where"]["rollout_end_cm"]["max"] > 10  # a 0.8 deg/cycle yaw bias drifts far
     row = doc["where"]["by_gait_cycle"][0]
     assert set(row) >= {"id", "n", "mean", "rms"} and len(row["mean"]) == 3
     c = doc["candidates"][0]

@@ -154,8 +154,11 @@ def diagnose(
     fit_p, hold_p = _problem(table, fit_b, noise), _problem(table, hold_b, noise)
     all_b = batch_of(list(fit_runs) + list(hold_runs))
     where = where_report(all_b, step_residuals(table.rows, all_b, base))
+    ends = end_errors(table.rows, all_b, base)
     where["rollout_end_cm"] = {
-        "mean": round(float(end_errors(table.rows, all_b, base).mean()), 3)}
+        "mean": round(float(ends.mean()), 3), "median": round(float(np.median(ends)), 3),
+        "max": round(float(ends.max()), 3),
+        "per_run": {rid: round(float(e), 3) for rid, e in zip(all_b.run_ids, ends, strict=True)}}
     coverage = coverage_gap(table.rows, all_b, base)
     sel = forward_select(fit_p, hold_p, library)
     rms0, end0 = holdout_figures(hold_p, [])
