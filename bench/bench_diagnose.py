@@ -17,6 +17,8 @@ diagnosis without telling it the effect. Categories:
 - single_high_noise: singles with three times the tracker noise (no target);
 - table_error: no effect, but the model is the measured table while the robot is a
   re-measured one (every entry off by 0.3 cm / 0.5 deg): a gap no effect explains;
+- null_step_noise / single_step_noise: the robot also varies by itself from step to step
+  (0.3 cm on F and T, 0.6 deg on dH per gait cycle), which the noise floor must absorb;
 - weak_short: singles at a quarter of the moderate magnitude on 12 runs of 30 gait cycles with
   high noise: where the method runs out of data (no target; shows the failure modes).
 
@@ -41,7 +43,9 @@ from pac_host.model.table import GaitTable, measured_table
 NAMES = list(EFFECT_SPECS)
 NOISE = {"moderate": (0.5, 1.0), "high": (1.5, 3.0)}
 SEED = 2024
-KINDS = ("single", "pair", "null", "withheld", "single_high_noise", "table_error", "weak_short")
+KINDS = ("single", "pair", "null", "withheld", "single_high_noise", "table_error", "weak_short",
+         "null_step_noise", "single_step_noise")
+STEP_NOISE = (0.3, 0.6)  # the robot's own step variability: cm on F and T, deg on dH
 WEAK = 0.25  # weak_short cases: a quarter of a moderate magnitude ...
 SHORT = (12, 30)  # ... on 12 runs of 30 gait cycles, with high tracker noise
 
@@ -74,11 +78,11 @@ def _weaker(effect: Effect, f: float) -> Effect:
 
 
 def _case(kind: str, index: int, effects, noise, library=None, perturb=False,
-          model_rows=None, size=(40, 60)) -> dict:
+          model_rows=None, size=(40, 60), step_noise=(0.0, 0.0)) -> dict:
     rng = np.random.default_rng([SEED, KINDS.index(kind), index])
     rows, fit, hold = blind_case(rng, effects, n_runs=size[0], n_cycles=size[1],
                                  pos_noise_cm=noise[0], heading_noise_deg=noise[1],
-                                 perturb_table=perturb)
+                                 perturb_table=perturb, step_noise=step_noise)
     t0 = time.perf_counter()
     d = diagnose(GaitTable(rows if model_rows is None else model_rows), fit, hold, rng, library)
     wall = time.perf_counter() - t0
@@ -112,6 +116,7 @@ def run(quick: bool = False) -> dict:
     n_high = 0 if quick else 3
     n_table = 0 if quick else 10
     n_weak = 0 if quick else 5
+    n_step = 1 if quick else 3
     pick = np.random.default_rng(SEED)
     cases = []
     for name in NAMES:
@@ -144,6 +149,14 @@ def run(quick: bool = False) -> dict:
                                                                         i])), WEAK)]
             cases.append(_case("weak_short", len(cases), eff, NOISE["high"], size=SHORT,
                                perturb=i % 2 == 1))
+    for i in range(n_step * 5):
+        cases.append(_case("null_step_noise", len(cases), [], NOISE["moderate"],
+                           perturb=i % 2 == 1, step_noise=STEP_NOISE))
+    for name in NAMES:
+        for i in range(n_step):
+            eff = [moderate_effect(name, np.random.default_rng([SEED, 8, NAMES.index(name), i]))]
+            cases.append(_case("single_step_noise", len(cases), eff, NOISE["moderate"],
+                               perturb=i % 2 == 1, step_noise=STEP_NOISE))
     return summarize(cases, quick)
 
 
@@ -249,6 +262,15 @@ def summarize(cases: list[dict], quick: bool) -> dict:
                        "informative": c["informative"], "notes": c["notes"]}
                       for c in by["weak_short"]],
         },
+        "step_noise": {"cm": STEP_NOISE[0], "deg": STEP_NOISE[1]},
+        "step_noise_false_positive": _frac(bool(c["selected"])
+                                           or c["verdict"] != "no_significant_gap"
+                                           for c in by["null_step_noise"]),
+        "step_noise_top1": _frac(c["selected"][:1] == c["true_names"]
+                                 for c in by["single_step_noise"]),
+        "step_noise_median_shrink": (round(float(np.median(
+            [c["shrink"] for c in by["single_step_noise"]])), 4)
+            if by["single_step_noise"] else None),
         "median_diagnosis_s": round(float(np.median([c["wall_s"] for c in cases])), 3),
         "max_diagnosis_s": round(float(np.max([c["wall_s"] for c in cases])), 3),
         "failures": [c for c in singles if c["selected"][:1] != c["true_names"]],

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from pac_host.diagnose.likelihood import whitener
-from pac_host.diagnose.noise import estimate_noise
+from pac_host.diagnose.noise import NoiseFloor, estimate_noise
 from pac_host.diagnose.residuals import batch_of, step_residuals
+from pac_host.diagnose.synth import world_runs
 from pac_host.model import Effect, measured_table
 
 EFFECTS = [Effect("transition", {"alpha": 0.5}), Effect("turn_scale", {"c": 1.2})]
@@ -22,9 +23,13 @@ def test_noise_floor_is_not_inflated_by_effects(make_runs, pos, head):
     assert nf.heading_deg == pytest.approx(head, rel=0.1)
 
 
-def test_whitened_residuals_of_the_true_model_are_white(make_runs):
-    b = batch_of(make_runs(EFFECTS))
-    nf = estimate_noise(b)
+@pytest.mark.parametrize("step", [(0.0, 0.0), (0.3, 0.6)])
+def test_whitened_residuals_of_the_true_model_are_white(cycles, step):
+    rng = np.random.default_rng(4)
+    runs = world_runs(measured_table().rows, EFFECTS, cycles[:30], 50, rng, 0.5, 1.0,
+                      step_noise_cm=step[0], step_noise_deg=step[1])
+    b = batch_of(runs)
+    nf = NoiseFloor(0.5, 1.0, "true", 0, True, *step)  # the likelihood alone, known noise
     wh = whitener(b, nf)
     res = step_residuals(measured_table().rows, b, EFFECTS)
     w = wh.whiten(res)
@@ -56,3 +61,23 @@ def test_whitener_inverts_the_dense_covariance(make_runs):
     sigma = (d * var) @ d.T
     w = wh.w[0, 0]
     np.testing.assert_allclose(w @ sigma @ w.T, np.eye(3 * c), atol=1e-9)
+
+
+def test_noise_floor_separates_the_robots_own_step_noise(cycles):
+    rng = np.random.default_rng(5)
+    runs = world_runs(measured_table().rows, EFFECTS, cycles, 60, rng, 0.5, 1.0,
+                      step_noise_cm=0.4, step_noise_deg=1.0)
+    nf = estimate_noise(batch_of(runs))
+    assert nf.pos_cm == pytest.approx(0.5, rel=0.15)
+    assert nf.heading_deg == pytest.approx(1.0, rel=0.15)
+    assert nf.step_cm == pytest.approx(0.4, rel=0.35)
+    assert nf.step_deg == pytest.approx(1.0, rel=0.35)
+    # and effect-free data from such a robot are not mistaken for a gap
+    from pac_host.diagnose import diagnose, split_runs
+    from pac_host.model import GaitTable
+
+    runs = world_runs(measured_table().rows, [], cycles, 60, rng, 0.5, 1.0,
+                      step_noise_cm=0.4, step_noise_deg=1.0)
+    fit, hold = split_runs(runs, 0.3, rng)
+    d = diagnose(GaitTable(measured_table().rows), fit, hold, rng)
+    assert d.verdict == "no_significant_gap" and d.selected == []

@@ -3,8 +3,9 @@
 Observed poses carry independent noise, but each observed move is the difference of two observed
 poses expressed in the frame of the first one, so the noise of step i and step i + 1 shares the
 pose between them. Linearizing the move in the observed poses, the residual vector r of a run is
-``r = D e`` with e the pose noise (sigma_p on x and y, sigma_h on h) and D a sparse matrix of the
-frame rotations, giving the block-tridiagonal covariance ``Sigma = D S D^T``. We whiten with the
+``r = D e + u`` with e the pose noise (sigma_p on x and y, sigma_h on h), D a sparse matrix of
+the frame rotations and u the robot's own step noise (independent per step), giving the
+block-tridiagonal covariance ``Sigma = D S D^T + diag(q)``. We whiten with the
 inverse Cholesky factor, ``w = L^-1 r``: then ``|w|^2`` is the exact (linearized) Gaussian
 negative log-likelihood up to a constant, a correctly scaled sum of squares for least squares,
 likelihood-ratio tests and BIC. (Treating steps as independent would overstate the information
@@ -111,6 +112,7 @@ def whitener(batch: Batch, noise: NoiseFloor, start_observed: bool = True) -> Wh
     if not start_observed:
         var_first[:, 0] = 0.0
     a = (p * var_first[..., None, :]) @ p.swapaxes(-1, -2) + (q * var) @ q.swapaxes(-1, -2)
+    a += np.diag([noise.step_cm**2, noise.step_cm**2, noise.step_deg**2])  # process noise
     b = np.zeros_like(a)
     b[:, 1:] = (p[:, 1:] * var) @ q[:, :-1].swapaxes(-1, -2)
     valid = mask[..., None, None]

@@ -50,16 +50,23 @@ def world_runs(
     heading_noise_deg: float = 1.0,
     runs_per_session: int = 10,
     start_pose: Sequence[float] = START_POSE,
+    step_noise_cm: float = 0.0,
+    step_noise_deg: float = 0.0,
 ) -> list[Run]:
     """Run each turn cycle for ``n_cycles`` gait cycles in the world and observe it.
 
     Runs follow each other in sessions of ``runs_per_session`` after a power-on, so
     ``cycles_since_power_on`` grows within a session (what a battery effect acts on).
+    ``step_noise_*`` add the robot's own step-to-step variability (Gaussian on F, T and dH of
+    every gait cycle), on top of the tracker noise on every observed pose.
     """
     ids, _ = expand(np.asarray(turn_cycles), n_cycles)
     m = len(ids)
     n0 = (np.arange(m) % runs_per_session) * n_cycles
     body, world = step_moves(rows, ids, effects, n0)
+    if step_noise_cm or step_noise_deg:
+        body = body + rng.normal(size=body.shape) * np.array(
+            [step_noise_cm, step_noise_cm, step_noise_deg])
     start = np.broadcast_to(np.asarray(start_pose, dtype=np.float64), (m, 3))
     poses = integrate(start, body, world)
     sd = np.array([pos_noise_cm, pos_noise_cm, heading_noise_deg])
@@ -105,6 +112,7 @@ def blind_case(
     heading_noise_deg: float = 1.0,
     perturb_table: bool = False,
     holdout_fraction: float = 0.3,
+    step_noise: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[np.ndarray, list[Run], list[Run]]:
     """A true table, runs in a world with ``effects``, split into fitting and held-out runs.
 
@@ -117,6 +125,7 @@ def blind_case(
     if perturb_table:
         rows = perturbed_rows(rows, rng)
     cycles = cga_turn_cycles(rng, n_runs)
-    runs = world_runs(rows, effects, cycles, n_cycles, rng, pos_noise_cm, heading_noise_deg)
+    runs = world_runs(rows, effects, cycles, n_cycles, rng, pos_noise_cm, heading_noise_deg,
+                      step_noise_cm=step_noise[0], step_noise_deg=step_noise[1])
     fit, hold = split_runs(runs, holdout_fraction, rng)
     return rows, fit, hold
