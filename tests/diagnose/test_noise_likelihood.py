@@ -46,7 +46,7 @@ def test_whitened_residuals_of_the_true_model_are_white(cycles, step):
 
 def test_whitener_inverts_the_dense_covariance(make_runs):
     b = batch_of(make_runs([], n_runs=2, n_cycles=12))
-    nf = estimate_noise(b)
+    nf = NoiseFloor(0.5, 1.0, "given", 0, True, 0.3, 0.6)
     wh = whitener(b, nf)
     c = wh.steps
     poses, o = b.poses[0, : c + 1], b.observed[0, :c]
@@ -58,7 +58,8 @@ def test_whitener_inverts_the_dense_covariance(make_runs):
         d[3 * i + 1, 3 * i : 3 * i + 5] = [-co, s, -np.radians(o[i, 0]), co, -s]
         d[3 * i + 2, [3 * i + 2, 3 * i + 5]] = [-1, 1]
     var = np.tile([nf.pos_cm**2, nf.pos_cm**2, nf.heading_deg**2], c + 1)
-    sigma = (d * var) @ d.T
+    sigma = (d * var) @ d.T + np.diag(np.tile([nf.step_cm**2, nf.step_cm**2,
+                                               nf.step_deg**2], c))
     w = wh.w[0, 0]
     np.testing.assert_allclose(w @ sigma @ w.T, np.eye(3 * c), atol=1e-9)
 
