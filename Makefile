@@ -6,7 +6,7 @@ STAMP   := $(VENV)/.installed
 OUT     ?= out
 PYDIRS  := $(wildcard host protocol simulator tests bench)
 
-.PHONY: help venv test demo bench bench-diagnose lint clean
+.PHONY: help venv test demo bench bench-diagnose lint sim clean firmware
 
 help:
 	@echo "make demo    run a short paper experiment on the built-in simulated robot"
@@ -14,6 +14,8 @@ help:
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
 	@echo "make bench-diagnose  blind benchmark of the gap diagnosis, bench/results/diagnose.json"
 	@echo "make lint    ruff"
+	@echo "make sim     run the Stamp emulator on a pseudo-terminal (REALTIME=0 for full speed)"
+	@echo "make firmware  tokenize firmware/servobot.bs2 (Node.js), writing build/servobot.json and .bin"
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -23,7 +25,19 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
-test: $(STAMP)
+# The firmware: Parallax's tokenizer (npm pbasic-tokenizer, pinned by firmware/package-lock.json).
+FW_DEPS := firmware/node_modules/.package-lock.json
+FW_IMAGE := build/servobot.json
+
+$(FW_DEPS): firmware/package.json firmware/package-lock.json
+	cd firmware && npm ci --no-audit --no-fund --loglevel=error
+
+$(FW_IMAGE): firmware/servobot.bs2 firmware/tools/tokenize.js $(FW_DEPS)
+	node firmware/tools/tokenize.js firmware/servobot.bs2 --out build
+
+firmware: $(FW_IMAGE)
+
+test: $(STAMP) firmware
 	$(BIN)/ruff check $(PYDIRS)
 	$(BIN)/python -m pytest
 
@@ -37,8 +51,11 @@ bench: $(STAMP)
 bench-diagnose: $(STAMP)
 	$(BIN)/python bench/run.py --only diagnose --out bench/results/diagnose.json
 
+sim: $(STAMP)
+	$(BIN)/pac-sim --realtime $(or $(REALTIME),1)
+
 lint: $(STAMP)
 	$(BIN)/ruff check $(PYDIRS)
 
 clean:
-	rm -rf $(VENV) $(OUT) bench/results
+	rm -rf $(VENV) $(OUT) bench/results build firmware/node_modules

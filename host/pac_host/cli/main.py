@@ -42,9 +42,9 @@ def main() -> None:
 
 
 def _register() -> None:
-    from pac_host.cli import diagnose, experiment, simulate, table
+    from pac_host.cli import diagnose, experiment, flash, robot, simulate, table
 
-    for mod in (table, simulate, experiment, diagnose):
+    for mod in (table, simulate, experiment, robot, flash, diagnose):
         mod.register(main)
 
 

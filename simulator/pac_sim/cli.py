@@ -1,0 +1,190 @@
+"""`pac-sim`: run an emulated ServoBot Stamp on a pseudo-terminal until interrupted.
+
+Prints the port path (open it with `pac-host robot ... --port PATH` or any serial terminal at
+9600 8N1) and the tracker's address, then serves until Ctrl-C or SIGTERM.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+
+import click
+
+from pac_host.cli.options import effect_option, load_with_effects, table_option
+from pac_host.errors import InputError, PacError
+from pac_sim.line import WINDOW_FLOOR_S, Faults
+from pac_sim.runner import SimConfig, SimStamp
+
+
+def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != n:
+        raise InputError(f"{what}: expected {n} comma-separated numbers, got {text!r}")
+    return vals
+
+
+def parse_tracker(text: str) -> tuple[str, int] | None:
+    """``HOST:PORT`` (port 0 = pick a free one) or ``off``."""
+    if text == "off":
+        return None
+    host, sep, port = text.rpartition(":")
+    if not sep or not port.isdigit() or int(port) > 65535:
+        raise InputError(f"--tracker: expected HOST:PORT or off, got {text!r}")
+    return host or "127.0.0.1", int(port)
+
+
+def _prob(v: float, name: str) -> float:
+    if not 0.0 <= v <= 1.0:
+        raise InputError(f"{name} must be in [0, 1], got {v}")
+    return v
+
+
+def build_config(**o: object) -> SimConfig:
+    """A SimConfig from the CLI's option values; every problem is one InputError line."""
+    if o["realtime"] < 0:
+        raise InputError(f"--realtime must be >= 0, got {o['realtime']}")
+    x, y, h = _floats(o["start"], 3, "--start")
+    pos, head = _floats(o["tracker_noise"], 2, "--tracker-noise")
+    if pos < 0 or head < 0:
+        raise InputError(f"--tracker-noise must be >= 0, got {o['tracker_noise']!r}")
+    faults = Faults(
+        _prob(o["drop_prob"], "--drop-prob"),
+        _prob(o["corrupt_prob"], "--corrupt-prob"),
+        o["silent"],
+    )
+    return SimConfig(
+        factor=o["realtime"],
+        echo=o["echo"],
+        faults=faults,
+        reset_after=o["reset_after"],
+        seed=o["seed"],
+        eeprom=o["eeprom"],
+        table=load_with_effects(o["table_spec"], o["effect_specs"]),
+        start=(x, y, h),
+        tracker_noise=(pos, head),
+        tracker=parse_tracker(o["tracker"]),
+        protocol_version=o["protocol_version"],
+        firmware_version=o["firmware_version"],
+        window_floor_s=o["window_floor"],
+    )
+
+
+@click.command(context_settings={"help_option_names": ["-h", "--help"]})
+@table_option("shifted", "The robot's true gait table: measured, shifted or a table file.")
+@effect_option()
+@click.option(
+    "--start",
+    default="45,30,90",
+    show_default=True,
+    metavar="X,Y,H",
+    help="Start pose: cm, cm, compass degrees.",
+)
+@click.option(
+    "--tracker",
+    default="127.0.0.1:0",
+    show_default=True,
+    metavar="HOST:PORT",
+    help="TCP address of the pose feed (port 0 picks one); 'off' for none.",
+)
+@click.option(
+    "--tracker-noise",
+    default="0,0",
+    show_default=True,
+    metavar="POS_CM,HEADING_DEG",
+    help="Standard deviation of the tracker's Gaussian noise.",
+)
+@click.option("--seed", default=0, show_default=True, type=int, help="Seeds noise and faults.")
+@click.option(
+    "--eeprom",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Persist the stored turn cycle in this file (kept across restarts).",
+)
+@click.option(
+    "--echo", is_flag=True, help="Echo every received byte (the pin-16 programming port)."
+)
+@click.option(
+    "--realtime",
+    default=1.0,
+    show_default=True,
+    type=float,
+    metavar="FACTOR",
+    help="Wall time = emulated time x FACTOR; 0 = as fast as possible.",
+)
+@click.option(
+    "--window-floor",
+    default=WINDOW_FLOOR_S,
+    show_default=True,
+    type=float,
+    metavar="SECONDS",
+    help="Shortest real listening window between gait cycles.",
+)
+@click.option("--drop-prob", default=0.0, type=float, help="Drop each byte with this probability.")
+@click.option(
+    "--corrupt-prob", default=0.0, type=float, help="Corrupt each byte with this probability."
+)
+@click.option(
+    "--reset-after",
+    default=None,
+    type=int,
+    metavar="N",
+    help="Reset the Stamp once, mid-frame, after N gait cycles.",
+)
+@click.option("--silent", is_flag=True, help="Never send a byte (a dead or absent Stamp).")
+@click.option(
+    "--protocol-version",
+    default=1,
+    show_default=True,
+    type=int,
+    help="Protocol version the emulated firmware announces.",
+)
+@click.option("--firmware-version", default=1, show_default=True, type=int)
+@click.option(
+    "--link",
+    "link_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Also make a symlink to the port at this path.",
+)
+def main(link_path: str | None, **opts: object) -> None:
+    """Emulate the ServoBot's BASIC Stamp II on a pseudo-terminal, with a simulated world."""
+    try:
+        sim = SimStamp(build_config(**opts))
+    except PacError as e:
+        click.echo(f"pac-sim: error: {e}", err=True)
+        sys.exit(e.exit_code)
+    if link_path:
+        link = Path(link_path)
+        if link.is_symlink():
+            link.unlink()
+        try:
+            link.symlink_to(sim.path)
+        except OSError as e:
+            sim.close()
+            click.echo(f"pac-sim: error: cannot create link {link}: {e.strerror}", err=True)
+            sys.exit(2)
+    click.echo(f"pac-sim: stamp on {sim.path}")
+    if sim.tracker is not None:
+        host, port = sim.tracker.address
+        click.echo(f"pac-sim: tracker on {host}:{port}")
+    sys.stdout.flush()
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    sim.start()
+    try:
+        while not done.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        pass
+    finally:
+        sim.close()
+        if link_path and Path(link_path).is_symlink():
+            os.unlink(link_path)
+        click.echo(f"pac-sim: stopped after {sim.stamp.cycles_total} gait cycles", err=True)

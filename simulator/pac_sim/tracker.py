@@ -1,0 +1,83 @@
+"""The overhead-camera tracker feed: one text line per gait cycle on a local TCP socket.
+
+Line format (simulator/README.md): ``POSE <seq> <gait> <power_on> <x_cm> <y_cm> <h_deg>``.
+A client first receives a ``#`` header line and a snapshot (gait -1) of the current pose.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+
+from pac_sim.world import PoseSample, World
+
+HEADER = "# pac-sim tracker 1: POSE seq gait cycles_since_power_on x_cm y_cm h_deg\n"
+
+
+def format_pose(s: PoseSample) -> str:
+    x, y, h = s.observed
+    return f"POSE {s.seq} {s.gait} {s.power_on} {x:.3f} {y:.3f} {h:.3f}\n"
+
+
+def parse_pose(line: str) -> PoseSample:
+    """Parse one POSE line (the observed pose; the true pose is unknown to a client)."""
+    parts = line.split()
+    if len(parts) != 7 or parts[0] != "POSE":
+        raise ValueError(f"not a POSE line: {line.strip()!r}")
+    pose = (float(parts[4]), float(parts[5]), float(parts[6]))
+    return PoseSample(int(parts[1]), int(parts[2]), int(parts[3]), pose, pose)
+
+
+class TrackerServer:
+    """Publishes the world's poses to every connected client; never blocks the emulator long."""
+
+    def __init__(self, world: World, host: str = "127.0.0.1", port: int = 0) -> None:
+        self.world = world
+        self._sock = socket.create_server((host, port))
+        self.address = self._sock.getsockname()[:2]
+        self._clients: list[socket.socket] = []
+        self._lock = threading.Lock()
+        self._closed = threading.Event()
+        self._thread = threading.Thread(target=self._accept, name="pac-sim-tracker", daemon=True)
+        world.observers.append(self.publish)
+        self._thread.start()
+
+    def _accept(self) -> None:
+        while not self._closed.is_set():
+            try:
+                conn, _ = self._sock.accept()
+            except OSError:
+                return
+            conn.settimeout(1.0)
+            try:
+                conn.sendall((HEADER + format_pose(self.world.snapshot())).encode())
+            except OSError:
+                conn.close()
+                continue
+            with self._lock:
+                self._clients.append(conn)
+
+    def publish(self, sample: PoseSample) -> None:
+        data = format_pose(sample).encode()
+        with self._lock:
+            for c in list(self._clients):
+                try:
+                    c.sendall(data)
+                except OSError:
+                    self._clients.remove(c)
+                    c.close()
+
+    def close(self) -> None:
+        self._closed.set()
+        if self.publish in self.world.observers:
+            self.world.observers.remove(self.publish)
+        try:
+            self._sock.shutdown(socket.SHUT_RDWR)  # wakes the blocked accept() on Linux
+        except OSError:
+            pass
+        self._sock.close()
+        with self._lock:
+            for c in self._clients:
+                c.close()
+            self._clients.clear()
+        self._thread.join(timeout=2)

@@ -1,0 +1,84 @@
+"""The simulated world: where the robot really is after each gait cycle.
+
+The pose advances with a true gait table plus unmodelled effects through the model's own
+``step_moves``/``integrate`` (the one definition of kinematics); observers (the tracker feed)
+receive the pose seen by an overhead camera, with Gaussian noise from a seeded generator.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pac_host.model import Effect, GaitTable, integrate, step_moves
+
+START_POSE = (45.0, 30.0, 90.0)  # the paper's start pose
+
+
+@dataclass(frozen=True)
+class PoseSample:
+    """One gait cycle as the world saw it: true pose and the tracker's noisy observation."""
+
+    seq: int  # gait cycles the world has executed since the emulator started (1, 2, ...)
+    gait: int  # -1 for a snapshot that follows no gait cycle
+    power_on: int  # gait cycles since the Stamp's last power-on/reset, this one included
+    true_pose: tuple[float, float, float]
+    observed: tuple[float, float, float]
+
+
+class World:
+    def __init__(
+        self,
+        table: GaitTable,
+        effects: Sequence[Effect] = (),
+        start: Sequence[float] = START_POSE,
+        noise: tuple[float, float] = (0.0, 0.0),
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        self.table = table
+        self.effects = tuple(table.effects) + tuple(effects)
+        self.pose = np.asarray(start, dtype=np.float64).copy()
+        self.noise = noise
+        rng = rng if rng is not None else np.random.default_rng(0)
+        self._cycle_rng, self._snap_rng = rng.spawn(2)
+        self.seq = 0
+        self.power_on = 0
+        self.history: list[PoseSample] = []
+        self.observers: list[Callable[[PoseSample], None]] = []
+        self._lock = threading.Lock()
+
+    def _observe(self, rng: np.random.Generator) -> tuple[float, float, float]:
+        pos, head = self.noise
+        n = rng.normal(size=3) * np.array([pos, pos, head])
+        return tuple(float(v) for v in self.pose + n)
+
+    def advance(self, gait: int, n0: int, prev_gait: int | None) -> PoseSample:
+        """Execute one gait cycle. ``n0``: cycles since power-on before it; ``prev_gait``: the
+        gait just before it in the same run (None at a run's start)."""
+        body, drift = step_moves(
+            self.table.rows, np.array([gait]), self.effects, n0=n0, prev_gait=prev_gait
+        )
+        with self._lock:
+            self.pose = integrate(self.pose, body, drift)[-1]
+            self.seq += 1
+            self.power_on = n0 + 1
+            s = PoseSample(
+                self.seq,
+                gait,
+                n0 + 1,
+                tuple(float(v) for v in self.pose),
+                self._observe(self._cycle_rng),
+            )
+            self.history.append(s)
+        for ob in list(self.observers):
+            ob(s)
+        return s
+
+    def snapshot(self) -> PoseSample:
+        """The current pose as the tracker sees it now (its noise from a separate stream)."""
+        with self._lock:
+            p = tuple(float(v) for v in self.pose)
+            return PoseSample(self.seq, -1, self.power_on, p, self._observe(self._snap_rng))
