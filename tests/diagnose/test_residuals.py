@@ -44,3 +44,21 @@ def test_where_finds_the_yaw_bias(make_runs):
     assert set(ctx) == {"change", "power_on", "heading", "turn"}
     assert ctx["change"]["repeat"]["n"] + ctx["change"]["after_change"]["n"] == \
         b.n_steps - len(runs)
+
+
+def test_blind_case_world_is_the_emulators_world(cycles):
+    """The benchmark's runs move exactly as the emulator's world moves, step by step."""
+    from pac_host.diagnose.synth import world_runs
+    from pac_host.model import GaitTable
+    from pac_sim.world import World
+
+    rows = measured_table().rows
+    runs = world_runs(rows, TRUE, cycles[:3], 25, np.random.default_rng(0), 0.0, 0.0,
+                      runs_per_session=3)
+    for run in runs:
+        world = World(GaitTable(rows), TRUE, start=run.start_pose)
+        prev = None
+        for i, g in enumerate(run.gait_cycles):
+            sample = world.advance(int(g), run.cycles_since_power_on + i, prev)
+            prev = int(g)
+            np.testing.assert_allclose(sample.true_pose, run.poses[i], atol=1e-9)
