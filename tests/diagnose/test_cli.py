@@ -132,3 +132,10 @@ def test_bad_holdout_fraction(runs_file):
     assert r.returncode == 2
     assert r.stderr.strip() == ("pac-host: error: --holdout-fraction must be between 0 and 1, "
                                 "got 1.5")
+
+
+def test_holdout_file_and_fraction_exclude_each_other(runs_file):
+    r = _cli("diagnose", "--model", "measured", "--runs", str(runs_file), "--holdout",
+             str(runs_file), "--holdout-fraction", "0.2")
+    assert r.returncode == 2
+    assert r.stderr.strip() == "pac-host: error: give --holdout or --holdout-fraction, not both"

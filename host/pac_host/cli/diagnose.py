@@ -18,8 +18,9 @@ from pac_host.model import resolve_table, save_table
               help="The model: a built-in table name or a pac-gait-table/1 file.")
 @click.option("--runs", "runs_path", required=True, type=click.Path(dir_okay=False),
               help="Observed runs, JSON Lines (one run per line).")
-@click.option("--holdout-fraction", default=0.3, show_default=True, type=float,
-              help="Share of the runs (whole runs, chosen by --seed) held out from fitting.")
+@click.option("--holdout-fraction", default=None, type=float,
+              help="Share of the runs (whole runs, chosen by --seed) held out from fitting "
+                   "[default: 0.3].")
 @click.option("--holdout", "holdout_path", type=click.Path(dir_okay=False),
               help="Held-out runs in their own file; then every run of --runs is for fitting.")
 @click.option("--seed", default=0, show_default=True, type=int,
@@ -44,8 +45,11 @@ def diagnose_cmd(model_spec, runs_path, holdout_fraction, holdout_path, seed, li
     runs = read_runs(runs_path)
     rng = np.random.default_rng(seed)
     if holdout_path:
+        if holdout_fraction is not None:
+            raise InputError("give --holdout or --holdout-fraction, not both")
         fit_runs, hold_runs = runs, read_runs(holdout_path)
     else:
+        holdout_fraction = 0.3 if holdout_fraction is None else holdout_fraction
         fit_runs, hold_runs = split_runs(runs, holdout_fraction, rng)
     lib = None
     if library is not None:
