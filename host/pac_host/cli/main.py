@@ -42,9 +42,9 @@ def main() -> None:
 
 
 def _register() -> None:
-    from pac_host.cli import experiment, robot, simulate, table
+    from pac_host.cli import evolve, experiment, measure, robot, simulate, table
 
-    for mod in (table, simulate, experiment, robot):
+    for mod in (table, simulate, experiment, robot, evolve, measure):
         mod.register(main)
 
 
