@@ -73,6 +73,7 @@ class LinkedRobot:
         self.start_pose = tuple(float(v) for v in start_pose)
         self.generation = 0
         self.runs: list[dict] = []
+        self.current_run = ""  # the run in progress (named in errors)
 
     def run_tests(self, tests: np.ndarray) -> list[TestResult]:
         self.runs = []
@@ -81,6 +82,7 @@ class LinkedRobot:
 
     def run_one(self, run_id: str, genes: np.ndarray, key: tuple[int, ...]) -> TestResult:
         """Place, load, run the budget, observe, score one turn cycle (9, 2)."""
+        self.current_run = run_id
         genes = np.asarray(genes, dtype=np.int64).reshape(-1, 2)
         stored = [(int(g), int(r)) for g, r in genes if r > 0]
         seen = self.placer.place(run_id, self.start_pose, run_seed(self.seed, *key))
