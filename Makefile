@@ -6,11 +6,12 @@ STAMP   := $(VENV)/.installed
 OUT     ?= out
 PYDIRS  := $(wildcard host protocol simulator tests bench)
 
-.PHONY: help venv test demo bench lint sim clean
+.PHONY: help venv test demo demo-evolve bench lint sim clean
 
 help:
 	@echo "make demo    run a short paper experiment on the built-in simulated robot"
 	@echo "make test    install into .venv and run the test suite"
+	@echo "make demo-evolve  PAL over the serial link against the built-in emulator (about a minute)"
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
 	@echo "make lint    ruff"
 	@echo "make sim     run the Stamp emulator on a pseudo-terminal (REALTIME=0 for full speed)"
@@ -30,6 +31,10 @@ test: $(STAMP)
 demo: $(STAMP)
 	rm -rf $(OUT)/demo-experiment
 	$(BIN)/pac-host experiment --seeds 4 --generations 400 --methods full,partial --jobs 2 --out $(OUT)/demo-experiment
+
+demo-evolve: $(STAMP)
+	rm -rf $(OUT)/demo-evolve
+	$(BIN)/pac-host evolve --out $(OUT)/demo-evolve --generations 480 --budget 200 --seed 1
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py --out bench/results/bench.json

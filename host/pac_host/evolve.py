@@ -205,8 +205,9 @@ def evolve(
             state, rec = pal.punctuate(state, timer, rng, pcfg)
         except PacError as e:
             raise RunInterrupted(
-                f"run {robot.current_run}: {e}. Everything observed is in {d.observations}; `pac-host evolve --resume "
-                f"{d.root}` continues from the last complete punctuation") from None
+                f"run {robot.current_run}: {e}. Everything observed is in {d.observations}; "
+                f"`pac-host evolve --resume {d.root}` continues from the last complete "
+                "punctuation") from None
         rec["run_ids"] = [f"g{rec['generation']}-t{i}" for i in range(len(rec["tests"]))]
         rec["model"] = state.models[0].round(6).tolist()
         if conn.truth is not None:

@@ -121,7 +121,7 @@ class StampRobot:
         finished gait cycle's report as it arrives. Returns when the robot is idle again."""
         n0 = self.status().power_on
         self.link.run(cycles)
-        return self._follow(cycles, n0, on_cycle)
+        return self.follow(cycles, n0, on_cycle)
 
     def step(
         self, gait: int, reps: int, on_cycle: Callable[[Cycle], None] | None = None
@@ -129,11 +129,13 @@ class StampRobot:
         """Walk gait cycle ``gait`` ``reps`` times (see :meth:`run`)."""
         n0 = self.status().power_on
         self.link.step(gait, reps)
-        return self._follow(reps, n0, on_cycle)
+        return self.follow(reps, n0, on_cycle)
 
-    def _follow(
-        self, n: int, n0: int, on_cycle: Callable[[Cycle], None] | None
+    def follow(
+        self, n: int, n0: int = 0, on_cycle: Callable[[Cycle], None] | None = None
     ) -> RunReport:
+        """Wait for the run in progress (``n`` gait cycles, started at power-on count ``n0``)
+        to end, e.g. after a :meth:`stop`; ``on_cycle`` sees each report."""
         seen: list[Cycle] = []
         while True:
             ev = self.link.next_event(self.event_timeout)
