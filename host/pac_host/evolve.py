@@ -131,6 +131,7 @@ def _start(d: EvolveDir, cfg: EvolveConfig) -> tuple[pal.PALState, np.random.Gen
     d.root.mkdir(parents=True, exist_ok=True)
     for p in (d.log, d.runs, d.state):
         p.unlink(missing_ok=True)
+    d.runs.touch()  # exists even when the observer gives counts, not paths
     _write_atomic(d.config, json.dumps({"format": CONFIG_FORMAT, **asdict(cfg)}, indent=1) + "\n")
     model = resolve_table(cfg.model)
     pcfg = cfg.pal()

@@ -116,3 +116,48 @@ def test_bad_input_is_one_line(tmp_path):
     (tmp_path / "used").mkdir()
     (tmp_path / "used" / "log.jsonl").write_text('{"generation": 0}\n')
     one_line(invoke("evolve", "--out", str(tmp_path / "used")), 2, "use --resume")
+
+
+def test_evolve_against_a_pac_sim_process_with_its_tracker(baseline, tmp_path):
+    """The real-robot path: --port and --observer, here a separate pac-sim process whose world
+    is placed through its tracker (--placer tracker) instead of by a person."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    proc = subprocess.Popen([str(Path(sys.executable).parent / "pac-sim"), "--realtime", "0",
+                             "--tracker-noise", "0.5,1"], stdout=subprocess.PIPE, text=True)
+    try:
+        port = proc.stdout.readline().split()[-1]
+        tracker = proc.stdout.readline().split()[-1]
+        out = tmp_path / "proc"
+        res = invoke("evolve", "--port", port, "--observer", f"tracker:{tracker}",
+                     "--placer", "tracker", "--out", str(out), "--generations", "40", *SMALL)
+        assert res.exit_code == 0, res.output
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+    # the same robot, the same seed: the same results as with the built-in emulator (whose
+    # true table the log may also compare the model with)
+    base = results(baseline)
+    for r in base["log"]:
+        del r["true_error_on_used"]
+    assert results(out) == base
+    assert (out / "runs.jsonl").read_text() == (baseline / "runs.jsonl").read_text()
+
+
+def test_evolve_with_manual_counts(tmp_path):
+    out = tmp_path / "hand"
+    typed = "five 3 2\n5 3 2\n4 4 4\n6 2 3\n"  # the first reply is asked again
+    res = invoke("evolve", "--out", str(out), "--generations", "0", *SMALL,
+                 "--observer", "manual", input=typed)
+    assert res.exit_code == 0, res.output
+    assert "'five 3 2' is not 3 whole numbers" in res.output
+    rec = read_jsonl(out / "log.jsonl")[0]
+    assert [(o["blocks_covered"], o["blocks_covered_once"], o["fitness"])
+            for o in rec["observed"]] == [(5, 3, 2), (4, 4, 4), (6, 2, 3)]
+    assert rec["operational_fitness"] == 2
+    assert (out / "runs.jsonl").read_text() == ""  # counts are not paths: nothing to diagnose
+    figs = [o for o in read_jsonl(out / "observations.jsonl") if o["type"] == "figures"]
+    assert [f["repeat_visits"] for f in figs] == [2, 0, 4] and figs[0]["repeat_visits_estimated"]

@@ -9,6 +9,7 @@ import click
 from pac_host.cli.link_options import ask, confirm, emulator_options, link_options
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config
+from pac_host.model.table import BUILTIN
 from pac_host.robot.connect import connect
 
 
@@ -38,7 +39,7 @@ from pac_host.robot.connect import connect
               help="CGA generations on the model before the first test.")
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget, model_spec,
                cga_population, model_population, model_generations, initial_generations,
-               port, observer_spec, **sim) -> None:
+               port, observer_spec, placer, **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
     Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
@@ -65,10 +66,12 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget,
         cfg = EvolveConfig(seed=seed, method=method, generations=generations, interval=interval,
                            model_generations=model_generations, cga_population=cga_population,
                            model_population=model_population, budget=budget,
-                           initial_generations=initial_generations, model=model_spec)
+                           initial_generations=initial_generations,
+                           model=model_spec if model_spec in BUILTIN
+                           else str(Path(model_spec).resolve()))
         cfg.check()
     emu = emulator_options(sim) if port is None else None
-    with connect(port, observer_spec, emu, ask, confirm) as conn:
+    with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:
         click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
 
         def show(rec: dict) -> None:

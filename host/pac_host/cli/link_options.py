@@ -18,6 +18,10 @@ OPTIONS = [
                  help="Where the robot really is: a tracker stream (TCP or named pipe, lines "
                       "'POSE seq gait power_on x y h') or the operator at a prompt. Default "
                       "with the emulator: its tracker."),
+    click.option("--placer", default="operator", show_default=True,
+                 type=click.Choice(["operator", "tracker"]),
+                 help="With --port: who puts the robot at each start pose: a person (asked, "
+                      "then Enter), or the tracker (PLACE lines: a pac-sim process's world)."),
     click.option("--sim-table", default="shifted", show_default=True,
                  metavar="measured|shifted|FILE", help="Emulator: the robot's true gait table."),
     click.option("--sim-effect", "sim_effects", multiple=True, metavar="NAME:P=V,...",

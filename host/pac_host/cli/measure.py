@@ -47,7 +47,7 @@ def _pose(text: str) -> tuple[float, float, float]:
 @click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="The measured pac-gait-table/1 file to write.")
 def measure_cmd(ids, repeats, cycles, start, seed, table_spec, out_path, port, observer_spec,
-                **sim) -> None:
+                placer, **sim) -> None:
     """Walk each gait cycle id REPEATS times from a known pose and fit its (F, T, dH).
 
     Writes OUT (pac-gait-table/1: the current table with the measured ids replaced),
@@ -65,7 +65,7 @@ def measure_cmd(ids, repeats, cycles, start, seed, table_spec, out_path, port, o
     out_path.parent.mkdir(parents=True, exist_ok=True)
     for k in (".observations.jsonl", ".runs.jsonl"):
         side[k].unlink(missing_ok=True)
-    with connect(port, observer_spec, emu, ask, confirm, manual_mode="pose") as conn:
+    with connect(port, observer_spec, emu, ask, confirm, "pose", placer) as conn:
         click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
         fits = measure(conn, cfg, AppendLog(side[".observations.jsonl"]),
                        AppendLog(side[".runs.jsonl"]))

@@ -8,6 +8,7 @@ answering or resets mid-run. It never prints.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -137,6 +138,15 @@ class StampRobot:
         """Wait for the run in progress (``n`` gait cycles, started at power-on count ``n0``)
         to end, e.g. after a :meth:`stop`; ``on_cycle`` sees each report."""
         seen: list[Cycle] = []
+        try:
+            return self._follow(n, n0, on_cycle, seen)
+        except KeyboardInterrupt:  # a person wants the robot to stop: tell it, best effort
+            with contextlib.suppress(PacError):
+                self.stop()
+            raise
+
+    def _follow(self, n: int, n0: int, on_cycle: Callable[[Cycle], None] | None,
+                seen: list[Cycle]) -> RunReport:
         while True:
             ev = self.link.next_event(self.event_timeout)
             if ev is None:

@@ -55,8 +55,12 @@ def connect(
     ask: Ask | None = None,
     confirm: Callable[[str], None] | None = None,
     manual_mode: str = "figures",
+    placer: str = "operator",
 ) -> Iterator[Connection]:
-    """A said-HELLO robot with its observer and placer; everything is closed on exit."""
+    """A said-HELLO robot with its observer and placer; everything is closed on exit.
+
+    With a port, ``placer`` is ``operator`` (a person, through ``confirm``) or ``tracker``
+    (PLACE lines to the ``tracker:HOST:PORT`` observer: a ``pac-sim`` process's world)."""
     with contextlib.ExitStack() as stack:
         if port is None:
             if emulator is None:
@@ -66,13 +70,22 @@ def connect(
         if observer_spec is None:
             raise InputError("--observer is needed with --port: tracker:HOST:PORT, pipe:PATH "
                              "or manual")
-        if confirm is None:
-            raise InputError("a real robot needs an operator to place it at each start pose")
         observer = open_observer(observer_spec, ask, manual_mode)
         stack.callback(observer.close)
+        place: Placer
+        if placer == "tracker":
+            if not observer_spec.startswith("tracker:"):
+                raise InputError("--placer tracker needs --observer tracker:HOST:PORT")
+            host, _, tport = observer_spec.removeprefix("tracker:").rpartition(":")
+            place = TrackerPlacer(host, int(tport))
+            stack.callback(place.close)
+        elif confirm is None:
+            raise InputError("a real robot needs an operator to place it at each start pose")
+        else:
+            place = OperatorPlacer(confirm)
         robot = StampRobot.open(port)
         stack.callback(robot.close)
-        yield Connection(robot, observer, OperatorPlacer(confirm), f"robot on {port}")
+        yield Connection(robot, observer, place, f"robot on {port}")
 
 
 def _emulated(stack: contextlib.ExitStack, observer_spec: str | None, o: EmulatorOptions,
