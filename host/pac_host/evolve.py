@@ -132,13 +132,18 @@ def _start(d: EvolveDir, cfg: EvolveConfig) -> tuple[pal.PALState, np.random.Gen
     for p in (d.log, d.runs, d.state):
         p.unlink(missing_ok=True)
     d.runs.touch()  # exists even when the observer gives counts, not paths
-    _write_atomic(d.config, json.dumps({"format": CONFIG_FORMAT, **asdict(cfg)}, indent=1) + "\n")
+    save_config(d.root, cfg)
     model = resolve_table(cfg.model)
     pcfg = cfg.pal()
     init = initial_population(model, 0, ExperimentConfig(
         base_seed=cfg.seed, initial_generations=cfg.initial_generations, pal=pcfg))
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 1]))
     return pal.initial_state(model, rng, pcfg, init), rng, True
+
+
+def save_config(root: Path, cfg: EvolveConfig) -> None:
+    _write_atomic(EvolveDir(root).config,
+                  json.dumps({"format": CONFIG_FORMAT, **asdict(cfg)}, indent=1) + "\n")
 
 
 def load_config(root: Path) -> EvolveConfig:

@@ -161,3 +161,17 @@ def test_evolve_with_manual_counts(tmp_path):
     assert (out / "runs.jsonl").read_text() == ""  # counts are not paths: nothing to diagnose
     figs = [o for o in read_jsonl(out / "observations.jsonl") if o["type"] == "figures"]
     assert [f["repeat_visits"] for f in figs] == [2, 0, 4] and figs[0]["repeat_visits_estimated"]
+
+
+def test_a_finished_run_carried_on_equals_a_longer_run(baseline, tmp_path):
+    short = tmp_path / "short"
+    assert invoke("evolve", "--out", str(short), "--generations", "20", *SMALL).exit_code == 0
+    res = invoke("evolve", "--resume", str(short), "--generations", "40")
+    assert res.exit_code == 0, res.output
+    assert results(short) == results(baseline)
+
+
+def test_emulator_options_are_refused_with_a_port(tmp_path):
+    res = invoke("evolve", "--out", str(tmp_path / "o"), "--port", "/dev/null",
+                 "--observer", "manual", "--sim-table", "measured")
+    assert res.exit_code == 2 and "--sim-table describes the built-in emulator" in res.output

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
 
-from pac_host.cli.link_options import ask, confirm, emulator_options, link_options
+from pac_host.cli.link_options import ask, confirm, emulator_options, given, link_options
 from pac_host.errors import InputError
-from pac_host.evolve import EvolveConfig, evolve, load_config
+from pac_host.evolve import EvolveConfig, evolve, load_config, save_config
 from pac_host.model.table import BUILTIN
 from pac_host.robot.connect import connect
 
@@ -59,6 +60,10 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget,
         if out_dir is not None and Path(out_dir) != Path(resume_dir):
             raise InputError("give either --out or --resume DIR (the run's own directory)")
         root, cfg = resume_dir, load_config(resume_dir)
+        if given("generations"):  # a finished run may be carried on further
+            cfg = replace(cfg, generations=generations)
+            cfg.check()
+            save_config(root, cfg)
     elif out_dir is None:
         raise InputError("--out DIR is required (or --resume DIR)")
     else:
@@ -70,7 +75,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget,
                            model=model_spec if model_spec in BUILTIN
                            else str(Path(model_spec).resolve()))
         cfg.check()
-    emu = emulator_options(sim) if port is None else None
+    emu = emulator_options(sim, port)
     with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:
         click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
 

@@ -47,8 +47,27 @@ def link_options(f):
     return f
 
 
-def emulator_options(o: dict) -> EmulatorOptions:
-    """EmulatorOptions from the parsed options (popped from ``o``)."""
+def given(name: str) -> bool:
+    """True if the option was typed on the command line (not its default)."""
+    src = click.get_current_context().get_parameter_source(name)
+    return src is not None and src.name in ("COMMANDLINE", "ENVIRONMENT")
+
+
+SIM_NAMES = ("sim_table", "sim_effects", "sim_noise", "sim_realtime", "sim_seed", "drop_prob",
+             "corrupt_prob", "mute_after")
+
+
+def emulator_options(o: dict, port: str | None) -> EmulatorOptions | None:
+    """EmulatorOptions from the parsed options (popped from ``o``); None with a real port,
+    where emulator options make no sense and are refused."""
+    if port is not None:
+        typed = [n for n in SIM_NAMES if given(n)]
+        if typed:
+            flag = "--" + typed[0].replace("_", "-")
+            flag = "--sim-effect" if flag == "--sim-effects" else flag
+            raise InputError(f"{flag} describes the built-in emulator; it does not apply with "
+                             "--port")
+        return None
     noise_text = o.pop("sim_noise")
     try:
         pos, head = (float(v) for v in noise_text.split(","))

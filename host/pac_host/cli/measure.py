@@ -59,7 +59,7 @@ def measure_cmd(ids, repeats, cycles, start, seed, table_spec, out_path, port, o
     cfg = MeasureConfig(parse_ids(ids), repeats, cycles, _pose(start), seed)
     cfg.check()
     current = resolve_table(table_spec)
-    emu = emulator_options(sim) if port is None else None
+    emu = emulator_options(sim, port)
     side = {k: out_path.with_name(out_path.stem + k) for k in
             (".measure.json", ".png", ".observations.jsonl", ".runs.jsonl")}
     out_path.parent.mkdir(parents=True, exist_ok=True)
