@@ -25,7 +25,7 @@ import json
 import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +55,7 @@ class EvolveConfig:
     budget: int = 200
     initial_generations: int = 200
     model: str = "measured"
+    robot: dict = field(default_factory=dict)  # what played the robot (a resume reuses it)
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -278,7 +279,8 @@ def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: d
     best = timer.results[0] if timer.results else None
     if best is not None and best.poses is not None:
         coverage_path(best.poses, detect_blocks(best.poses), d.path_png,
-                      f"generation {state.generation}: {rec['tests'][0]} on the robot",
+                      f"generation {state.generation}, best turn cycle on the robot:\n"
+                      f"{rec['tests'][0]}",
                       best.figures())
     learning_progress(records, d.progress_png, "PAL on the robot")
     _write_atomic(d.state, json.dumps(pal.state_to_json(state, rng)) + "\n")

@@ -175,3 +175,16 @@ def test_emulator_options_are_refused_with_a_port(tmp_path):
     res = invoke("evolve", "--out", str(tmp_path / "o"), "--port", "/dev/null",
                  "--observer", "manual", "--sim-table", "measured")
     assert res.exit_code == 2 and "--sim-table describes the built-in emulator" in res.output
+
+
+def test_resume_keeps_the_emulated_world(tmp_path):
+    """A run against an emulator with an unmodelled effect resumes against the same world."""
+    out, whole = tmp_path / "cut", tmp_path / "whole"
+    world = ["--sim-effect", "yaw_bias:delta=1.5", "--sim-noise", "0.3,0.5"]
+    res = invoke("evolve", "--out", str(whole), "--generations", "20", *SMALL, *world)
+    assert res.exit_code == 0, res.output
+    res = invoke("evolve", "--out", str(out), "--generations", "20", *SMALL, *world,
+                 "--mute-after", "450")
+    assert res.exit_code == 1 and "stopped answering" in res.output
+    assert invoke("evolve", "--resume", str(out)).exit_code == 0
+    assert results(out) == results(whole)

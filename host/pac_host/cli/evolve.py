@@ -64,6 +64,10 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget,
             cfg = replace(cfg, generations=generations)
             cfg.check()
             save_config(root, cfg)
+        if port is None:  # the same emulated world as before, unless told otherwise
+            for name, value in cfg.robot.get("emulator", {}).items():
+                if not given(name):
+                    sim[name] = tuple(value) if isinstance(value, list) else value
     elif out_dir is None:
         raise InputError("--out DIR is required (or --resume DIR)")
     else:
@@ -72,8 +76,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget,
                            model_generations=model_generations, cga_population=cga_population,
                            model_population=model_population, budget=budget,
                            initial_generations=initial_generations,
-                           model=model_spec if model_spec in BUILTIN
-                           else str(Path(model_spec).resolve()))
+                           model=_spec(model_spec), robot=_robot(port, observer_spec, sim))
         cfg.check()
     emu = emulator_options(sim, port)
     with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:
@@ -89,6 +92,18 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget,
     if last:
         click.echo(f"operational turn cycle {last['operational']} (fitness "
                    f"{last['operational_fitness']} on the robot); files in {root}")
+
+
+def _spec(table: str) -> str:
+    """A table spec that still means the same file when resumed from elsewhere."""
+    return table if table in BUILTIN else str(Path(table).resolve())
+
+
+def _robot(port: str | None, observer: str | None, sim: dict) -> dict:
+    if port is not None:
+        return {"port": port, "observer": observer}
+    return {"emulator": {"sim_table": _spec(sim["sim_table"]),
+                         "sim_effects": list(sim["sim_effects"]), "sim_noise": sim["sim_noise"]}}
 
 
 def register(main: click.Group) -> None:
