@@ -136,7 +136,7 @@ def test_evolve_against_a_pac_sim_process_with_its_tracker(baseline, tmp_path):
                      "--placer", "tracker", "--out", str(out), "--generations", "40", *SMALL)
         assert res.exit_code == 0, res.output
     finally:
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(signal.SIGTERM)
         proc.wait(timeout=10)
     # the same robot, the same seed: the same results as with the built-in emulator (whose
     # true table the log may also compare the model with)
