@@ -127,8 +127,9 @@ def error_on_used(model: np.ndarray, truth: np.ndarray, used: list[int]) -> dict
 
 def _start(d: EvolveDir, cfg: EvolveConfig) -> tuple[pal.PALState, np.random.Generator, bool]:
     """A fresh state; writes config.json. The bool says no punctuation is done yet."""
-    if d.log.exists() and d.log.stat().st_size:
-        raise InputError(f"{d.log} exists: use --resume {d.root} to continue it, or another --out")
+    if d.state.exists():  # a complete punctuation is there: never overwrite it by accident
+        raise InputError(f"{d.root} holds an evolve run: use --resume {d.root} to continue it, "
+                         "or another --out")
     d.root.mkdir(parents=True, exist_ok=True)
     for p in (d.log, d.runs, d.state):
         p.unlink(missing_ok=True)

@@ -57,7 +57,7 @@ def test_evolve_writes_a_complete_log_and_the_model_error_falls(baseline):
 def test_byte_faults_change_nothing(baseline, tmp_path):
     out = tmp_path / "faults"
     res = invoke("evolve", "--out", str(out), "--generations", "40", *SMALL,
-                 "--drop-prob", "0.003", "--corrupt-prob", "0.003", "--sim-seed", "7")
+                 "--drop-prob", "0.002", "--corrupt-prob", "0.002", "--sim-seed", "7")
     assert res.exit_code == 0, res.output
     assert results(out) == results(baseline)
     assert (out / "runs.jsonl").read_text() == (baseline / "runs.jsonl").read_text()
@@ -114,7 +114,7 @@ def test_bad_input_is_one_line(tmp_path):
     one_line(invoke("evolve", "--out", str(tmp_path / "o"), "--port", "/dev/null",
                     "--observer", "manual"), 2, "not a serial device")
     (tmp_path / "used").mkdir()
-    (tmp_path / "used" / "log.jsonl").write_text('{"generation": 0}\n')
+    (tmp_path / "used" / "state.json").write_text('{}\n')
     one_line(invoke("evolve", "--out", str(tmp_path / "used")), 2, "use --resume")
 
 
