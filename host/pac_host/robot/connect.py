@@ -85,7 +85,7 @@ def connect(
             place = OperatorPlacer(confirm)
         robot = StampRobot.open(port)
         stack.callback(robot.close)
-        yield Connection(robot, observer, place, f"robot on {port}")
+        yield Connection(robot, observer, place, f"serial port {port}")
 
 
 def _emulated(stack: contextlib.ExitStack, observer_spec: str | None, o: EmulatorOptions,
