@@ -81,3 +81,18 @@ def test_linked_robot_scores_the_observed_path(sim_robot, tmp_path):
     assert sum(e["type"] == "pose" for e in log) == 120
     observer.close()
     placer.close()
+
+
+def test_ctrl_c_during_a_run_stops_the_robot(sim_robot):
+    sim, robot = sim_robot()
+    robot.load([(12, 5)])
+
+    def interrupt(c):
+        if c.done == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        robot.run(500, interrupt)
+    rep = robot.follow(500)  # the STOP was sent: the run ends at the next gait-cycle boundary
+    assert not rep.completed and rep.done < 10
+    assert robot.status().state == 0 and sim.stamp.cycles_total < 10
