@@ -90,6 +90,7 @@ class PtyLine:
         self.received = 0
         self.lost = 0  # bytes that arrived while the Stamp was not listening
         self._last_rx = time.monotonic()  # when the host last sent a byte
+        self.muted = False  # set by mute(): the cable is pulled, nothing reaches the host
 
     # ---- faults -------------------------------------------------------------------------------
 
@@ -143,7 +144,7 @@ class PtyLine:
             return b""
         if not self.faults.silent and starts_download(data[0], self._last_rx - before):
             raise DownloadStart(data)  # a reset: whatever the firmware was doing ends here
-        if self.echo and not self.faults.silent:
+        if self.echo and not (self.faults.silent or self.muted):
             self._write(data)
         return self._damage(data)
 
@@ -162,11 +163,16 @@ class PtyLine:
     def send(self, data: bytes) -> None:
         """SEROUT: the whole frame is on the host's side when its last byte would have arrived."""
         self._sleep(len(data) * BYTE_S * self.factor)
-        if self.faults.silent:
+        if self.faults.silent or self.muted:
             return
         data = self._damage(data)
         self.sent += len(data)
         self._write(data)
+
+    def mute(self) -> None:
+        """From now on nothing the Stamp sends reaches the host (a pulled cable, a dead
+        level shifter): the host sees a robot that stopped answering."""
+        self.muted = True
 
     def pause(self, seconds: float) -> None:
         """Time passes (walking, EEPROM writes); host bytes arriving meanwhile are lost."""

@@ -42,9 +42,18 @@ def main() -> None:
 
 
 def _register() -> None:
-    from pac_host.cli import diagnose, experiment, flash, robot, simulate, table
+    from pac_host.cli import (
+        diagnose,
+        evolve,
+        experiment,
+        flash,
+        measure,
+        robot,
+        simulate,
+        table,
+    )
 
-    for mod in (table, simulate, experiment, robot, flash, diagnose):
+    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash):
         mod.register(main)
 
 
