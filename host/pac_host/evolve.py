@@ -47,6 +47,7 @@ class EvolveConfig:
 
     seed: int = 0
     method: str = "partial"
+    model_fitness: str = "coverage"
     generations: int = 1000
     interval: int = 40
     model_generations: int = 40
@@ -60,6 +61,9 @@ class EvolveConfig:
     def check(self) -> None:
         if self.method not in ("partial", "full"):
             raise InputError(f"--method must be partial or full, got {self.method!r}")
+        if self.model_fitness not in ("coverage", "steps"):
+            raise InputError(f"--model-fitness must be coverage or steps, "
+                             f"got {self.model_fitness!r}")
         for name in ("generations", "initial_generations", "model_generations"):
             if getattr(self, name) < 0:
                 raise InputError(f"--{name.replace('_', '-')} must be >= 0")
@@ -71,7 +75,8 @@ class EvolveConfig:
 
     def pal(self) -> pal.PALConfig:
         return pal.PALConfig(
-            method=self.method, generations=self.generations, interval=self.interval,
+            method=self.method, model_fitness=self.model_fitness,
+            generations=self.generations, interval=self.interval,
             model_generations=self.model_generations, cga_population=self.cga_population,
             model_population=self.model_population, budget=self.budget)
 

@@ -188,3 +188,25 @@ def test_resume_keeps_the_emulated_world(tmp_path):
     assert res.exit_code == 1 and "stopped answering" in res.output
     assert invoke("evolve", "--resume", str(out)).exit_code == 0
     assert results(out) == results(whole)
+
+
+def test_path_fitness_brings_the_used_rows_to_the_robot(tmp_path):
+    """With --model-fitness steps the model GA scores one-step residuals of the observed
+    (noisy) paths, so the rows the tests use converge to the true robot's rows."""
+    out = tmp_path / "steps"
+    res = invoke("evolve", "--out", str(out), "--generations", "40", *SMALL,
+                 "--model-fitness", "steps")
+    assert res.exit_code == 0, res.output
+    log = read_jsonl(out / "log.jsonl")
+    assert all(r["model_fitness"] == "steps" for r in log)
+    used = sorted({g for r in log for g in r["used_gait_ids"]})
+    truth = shifted_table().rows[used]
+    start = np.abs(load_table_rows("measured")[used] - truth).mean()
+    end = np.abs(np.array(log[-1]["model"])[used] - truth).mean()
+    assert end < 0.75 * start, (start, end)
+
+
+def load_table_rows(name):
+    from pac_host.model import resolve_table
+
+    return resolve_table(name).rows

@@ -26,6 +26,10 @@ from pac_host.robot.connect import connect
               help="CGA generations between punctuations (tests on the robot).")
 @click.option("--method", default="partial", show_default=True,
               type=click.Choice(["partial", "full"]), help="Model GA recombination.")
+@click.option("--model-fitness", default="coverage", show_default=True,
+              type=click.Choice(["coverage", "steps"]),
+              help="Model GA score: the paper's six coverage differences, or the observed "
+                   "paths' one-step residuals (needs a tracker, not manual counts).")
 @click.option("--seed", default=0, show_default=True, type=int,
               help="Seeds the GAs and the emulator's per-run tracker noise.")
 @click.option("--budget", default=200, show_default=True, type=int,
@@ -38,8 +42,8 @@ from pac_host.robot.connect import connect
               help="Model GA generations per punctuation.")
 @click.option("--initial-generations", default=200, show_default=True, type=int,
               help="CGA generations on the model before the first test.")
-def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget, model_spec,
-               cga_population, model_population, model_generations, initial_generations,
+def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
+               model_spec, cga_population, model_population, model_generations, initial_generations,
                port, observer_spec, placer, **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
@@ -72,7 +76,8 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, seed, budget,
         raise InputError("--out DIR is required (or --resume DIR)")
     else:
         root = out_dir
-        cfg = EvolveConfig(seed=seed, method=method, generations=generations, interval=interval,
+        cfg = EvolveConfig(seed=seed, method=method, model_fitness=model_fitness,
+                           generations=generations, interval=interval,
                            model_generations=model_generations, cga_population=cga_population,
                            model_population=model_population, budget=budget,
                            initial_generations=initial_generations,
