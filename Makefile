@@ -6,12 +6,14 @@ STAMP   := $(VENV)/.installed
 OUT     ?= out
 PYDIRS  := $(wildcard host protocol simulator tests bench)
 
-.PHONY: help venv test demo bench lint sim sim-firmware clean firmware
+.PHONY: help venv test demo demo-evolve bench bench-diagnose lint sim sim-firmware clean firmware
 
 help:
-	@echo "make demo    run a short paper experiment on the built-in simulated robot"
+	@echo "make demo    the paper's experiment (short) and PAL over the serial link, on the built-in simulated robot"
 	@echo "make test    install into .venv and run the test suite"
+	@echo "make demo-evolve  PAL over the serial link against the built-in emulator (about a minute)"
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
+	@echo "make bench-diagnose  blind benchmark of the gap diagnosis, bench/results/diagnose.json"
 	@echo "make lint    ruff"
 	@echo "make sim     run the Stamp emulator on a pseudo-terminal (REALTIME=0 for full speed)"
 	@echo "make sim-firmware  the same, running firmware/servobot.bs2 itself in the PBASIC interpreter"
@@ -41,12 +43,23 @@ test: $(STAMP) firmware
 	$(BIN)/ruff check $(PYDIRS)
 	$(BIN)/python -m pytest
 
+# The main job on the built-in simulated robot: the paper's experiment (short), then PAL over
+# the serial protocol against the emulated Stamp on a pseudo-terminal.
 demo: $(STAMP)
-	rm -rf $(OUT)/demo-experiment
+	rm -rf $(OUT)/demo-experiment $(OUT)/demo-evolve
 	$(BIN)/pac-host experiment --seeds 4 --generations 400 --methods full,partial --jobs 2 --out $(OUT)/demo-experiment
+	$(BIN)/pac-host evolve --out $(OUT)/demo-evolve --generations 240 --budget 200 --seed 1
+	@echo "demo done: plots in $(OUT)/demo-experiment/*.png and $(OUT)/demo-evolve/*.png"
+
+demo-evolve: $(STAMP)
+	rm -rf $(OUT)/demo-evolve
+	$(BIN)/pac-host evolve --out $(OUT)/demo-evolve --generations 480 --budget 200 --seed 1
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py --out bench/results/bench.json
+
+bench-diagnose: $(STAMP)
+	$(BIN)/python bench/run.py --only diagnose --out bench/results/diagnose.json
 
 sim: $(STAMP)
 	$(BIN)/pac-sim --realtime $(or $(REALTIME),1)

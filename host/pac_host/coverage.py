@@ -17,6 +17,7 @@ point, lies inside it. Detection is checked at the start pose and after every ga
 from __future__ import annotations
 
 import re
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -141,51 +142,96 @@ def expand(genes: np.ndarray, budget: int) -> tuple[np.ndarray, np.ndarray]:
     return out, still
 
 
+class _Workspace:
+    """Scratch arrays for one (paths, poses) shape, reused chunk after chunk: allocating them
+    afresh costs more in page faults than the arithmetic done in them."""
+
+    def __init__(self, shape: tuple[int, int]) -> None:
+        self.q = np.empty(shape, dtype=np.complex128)
+        self.p = np.empty(shape, dtype=np.complex128)
+        self.f = [np.empty(shape) for _ in range(6)]
+        self.ok = np.empty(shape, dtype=bool)
+        self.tmp = np.empty(shape, dtype=bool)
+        self.blocks = np.empty(shape, dtype=np.int64)
+        self.prev = np.empty(shape, dtype=np.int64)
+
+
+_local = threading.local()
+
+
+def _workspace(shape: tuple[int, int]) -> _Workspace:
+    cache = _local.__dict__.setdefault("cache", {})
+    ws = cache.get(shape)
+    if ws is None:
+        if len(cache) >= 8:
+            cache.clear()
+        ws = cache[shape] = _Workspace(shape)
+    return ws
+
+
 def detect_blocks(poses: np.ndarray) -> np.ndarray:
     """Block detected at each pose (..., n) of paths (..., n, 3): row * 3 + column, or -1 where
     the body straddles a border or lies outside the area."""
+    poses = np.asarray(poses, dtype=np.float64)
     rad = np.radians(poses[..., 2])
-    return _detect(poses[..., 0], poses[..., 1], np.sin(rad), np.cos(rad))
+    flat = (a.reshape(-1, poses.shape[-2]) for a in
+            (poses[..., 0], poses[..., 1], np.sin(rad), np.cos(rad)))
+    x, y, s, c = flat
+    return _detect(x, y, s, c, _Workspace(x.shape)).reshape(poses.shape[:-1]).copy()
 
 
-def _detect(x: np.ndarray, y: np.ndarray, sin_h: np.ndarray, cos_h: np.ndarray) -> np.ndarray:
-    hx = np.abs(cos_h)
+def _detect(x: np.ndarray, y: np.ndarray, sin_h: np.ndarray, cos_h: np.ndarray,
+            ws: _Workspace) -> np.ndarray:
+    """The body-width test on (paths, poses) arrays, in the workspace's arrays."""
+    hx, hy, lo, hi, col, row = ws.f
+    ok, tmp = ws.ok, ws.tmp
+    np.abs(cos_h, out=hx)
     hx *= HALF_BODY_CM
-    hy = np.abs(sin_h)
+    np.abs(sin_h, out=hy)
     hy *= HALF_BODY_CM
-    lo = x - hx
-    col = np.floor(lo / BLOCK_CM)
-    ok = lo >= 0
-    hi = x + hx
-    hi -= col * BLOCK_CM  # the far end's offset into the near end's column
-    ok &= hi < BLOCK_CM
-    ok &= col < COLUMNS
-    lo = y - hy
-    row = np.floor(lo / BLOCK_CM)
-    ok &= lo >= 0
-    hi = y + hy
-    hi -= row * BLOCK_CM
-    ok &= hi < BLOCK_CM
+    # x: both ends in the near end's column, and that column inside the area
+    np.subtract(x, hx, out=lo)
+    np.divide(lo, BLOCK_CM, out=col)
+    np.floor(col, out=col)
+    np.greater_equal(lo, 0, out=ok)
+    np.add(x, hx, out=hi)
+    np.multiply(col, BLOCK_CM, out=lo)
+    hi -= lo  # the far end's offset into the near end's column
+    ok &= np.less(hi, BLOCK_CM, out=tmp)
+    ok &= np.less(col, COLUMNS, out=tmp)
+    # y: both ends in the near end's row, above y = 0
+    np.subtract(y, hy, out=lo)
+    np.divide(lo, BLOCK_CM, out=row)
+    np.floor(row, out=row)
+    ok &= np.greater_equal(lo, 0, out=tmp)
+    np.add(y, hy, out=hi)
+    np.multiply(row, BLOCK_CM, out=lo)
+    hi -= lo
+    ok &= np.less(hi, BLOCK_CM, out=tmp)
     row *= COLUMNS
     row += col
-    np.copyto(row, -1.0, where=~ok)
-    return row.astype(np.int64)
+    np.copyto(row, -1.0, where=np.logical_not(ok, out=tmp))
+    np.copyto(ws.blocks, row, casting="unsafe")
+    return ws.blocks
 
 
-def figures_from_blocks(blocks: np.ndarray) -> tuple[np.ndarray, ...]:
+def figures_from_blocks(blocks: np.ndarray, prev: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, ...]:
     """(covered, covered once, fitness, repeat visits) from detected blocks (..., n)."""
     lead = blocks.shape[:-1]
     b = blocks.reshape(-1, blocks.shape[-1])
     n_paths = b.shape[0]
-    prev = np.empty_like(b)
+    if prev is None:
+        prev = np.empty_like(b)
     prev[:, 0] = -1
     prev[:, 1:] = b[:, :-1]
-    start = b != prev  # a visit starts where detection enters a block
+    start = prev != b  # a visit starts where detection enters a block
     n_rows = int(b.max(initial=-1)) // COLUMNS + 2
     n_blocks = n_rows * COLUMNS
-    # one slot per (path, block) plus a slot per path for "no block", dropped after counting
-    key = b + (np.arange(n_paths) * (n_blocks + 1) + 1)[:, None]
-    visits = np.bincount(key.ravel(), weights=start.ravel(), minlength=n_paths * (n_blocks + 1))
+    # one slot per (path, block) plus a slot per path for "no block", dropped after counting;
+    # prev is free again and holds the slot keys
+    np.add(b, (np.arange(n_paths) * (n_blocks + 1) + 1)[:, None], out=prev)
+    visits = np.bincount(prev.ravel(), weights=start.ravel(), minlength=n_paths * (n_blocks + 1))
     visits = visits.reshape(n_paths, n_blocks + 1)[:, 1:].astype(np.int64)
     visits = visits.reshape(n_paths, n_rows, COLUMNS)
     covered = visits > 0
@@ -243,7 +289,7 @@ def simulate(
         k = np.arange(lo, min(lo + CHUNK_PATHS, n_paths))
         rows_k = rows if rows.ndim == 2 else rows[k // n_genes]
         path, blocks_k = _run_chunk(rows_k, genes[k % n_genes], budget, effects, start, keep_paths)
-        figures[:, k] = figures_from_blocks(blocks_k)
+        figures[:, k] = figures_from_blocks(blocks_k, _workspace(blocks_k.shape).prev)
         if keep_paths:
             poses[k] = path.poses()
             blocks[k] = blocks_k
@@ -275,5 +321,6 @@ def _run_chunk(rows, genes, budget, effects, start, headings):
         if world is not None:
             world = np.array(world)
             world[still] = 0.0
-    path = integrate_path(start, body, world, cmoves, headings)
-    return path, _detect(path.x, path.y, path.sin_h, path.cos_h)
+    ws = _workspace(ids.shape[:-1] + (budget + 1,))
+    path = integrate_path(start, body, world, cmoves, headings, (ws.q, ws.p))
+    return path, _detect(path.x, path.y, path.sin_h, path.cos_h, ws)

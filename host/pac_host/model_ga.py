@@ -15,20 +15,28 @@ Two recombination modes:
 >>> import numpy as np
 >>> used_gait_ids(np.array([[[12, 14], [3, 10], [12, 3], [19, 0]]])).tolist()
 [12, 3]
+>>> used_gait_ids(np.array([[[12, 14], [3, 10], [25, 9]]]), budget=20).tolist()  # 25 not reached
+[12, 3]
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from pac_host.coverage import DEFAULT_BUDGET, START_POSE, simulate
+from pac_host.coverage import DEFAULT_BUDGET, START_POSE, expand, simulate
 from pac_host.ga_ops import elite_indices, tournament, two_point_crossover
-from pac_host.model.effects import Effect
+from pac_host.model.effects import Effect, step_moves
+from pac_host.model.kinematics import moves_between
 
 METHODS = ("full", "partial")
+FITNESSES = ("coverage", "steps")
+# Weight of a degree of heading error against a centimetre of position error in "steps".
+HEADING_CM_PER_DEG = 1.0
+
+ErrorFn = Callable[[np.ndarray], np.ndarray]
 # Standard deviation of a mutation (and of the initial perturbation) per component F, T, dH:
 # about the difference between neighbouring turn strengths in the measured table.
 DEFAULT_SCALE = (0.6, 0.4, 1.5)
@@ -57,14 +65,16 @@ def perturbed_population(
     return pop
 
 
-def used_gait_ids(tests: np.ndarray) -> np.ndarray:
-    """Gait ids the turn cycles (k, 9, 2) use, in order of first use (genes with 0 repetitions
-    are skipped and so not used)."""
-    seen: dict[int, None] = {}
-    for gid, reps in np.asarray(tests).reshape(-1, 2):
-        if reps > 0:
-            seen.setdefault(int(gid), None)
-    return np.fromiter(seen, dtype=np.int64, count=len(seen))
+def used_gait_ids(tests: np.ndarray, budget: int = DEFAULT_BUDGET) -> np.ndarray:
+    """Gait ids the turn cycles (k, 9, 2) execute within the budget, in order of first use.
+
+    A gene the robot never reaches in ``budget`` gait cycles (or with 0 repetitions) is not used
+    by the test: nothing observed depends on it.
+    """
+    ids, still = expand(np.asarray(tests).reshape(-1, *np.shape(tests)[-2:]), budget)
+    seq = ids[~still].ravel()
+    _, first = np.unique(seq, return_index=True)
+    return seq[np.sort(first)].astype(np.int64)
 
 
 def model_fitness(
@@ -84,6 +94,37 @@ def model_fitness(
     err = np.abs(cov.blocks_covered - observed[None, :, 0])
     err += np.abs(cov.blocks_covered_once - observed[None, :, 1])
     return err.sum(axis=1)
+
+
+def step_error(
+    tests: np.ndarray,
+    observed_poses: Sequence[np.ndarray],
+    budget: int = DEFAULT_BUDGET,
+    effects: Sequence[Effect] = (),
+) -> ErrorFn:
+    """An error function from the robot's observed paths instead of its coverage counts.
+
+    Each observed step (the move from one observed pose to the next, in the frame of the pose
+    before it) is compared with the model's row for the gait cycle executed there; the error is
+    the RMS over all steps of the three tests, in cm (a degree of heading counts as
+    ``HEADING_CM_PER_DEG`` cm). Unlike the six counts, this pins down every row the tests use,
+    so the model converges to the robot rather than to one of the many tables that happen to
+    cover the same blocks. Not the paper's fitness: a project option.
+    """
+    ids, _ = expand(np.asarray(tests), budget)
+    moves = [moves_between(np.asarray(p, dtype=np.float64)) for p in observed_poses]
+    n = min([budget] + [len(m) for m in moves])
+    ids = ids[:, :n]
+    obs = np.stack([m[:n] for m in moves])  # (k, n, 3)
+    weight = np.array([1.0, 1.0, HEADING_CM_PER_DEG])
+
+    def error(tables: np.ndarray) -> np.ndarray:
+        ids_m = np.broadcast_to(ids, (tables.shape[0],) + ids.shape)
+        body, _ = step_moves(tables, ids_m, effects)
+        d = (body - obs[None]) * weight
+        return np.sqrt(np.mean(d * d, axis=(1, 2, 3)))
+
+    return error
 
 
 def breed(
@@ -113,21 +154,27 @@ def evolve(
     method: str = "partial",
     cfg: ModelGAConfig = ModelGAConfig(),
     effects: Sequence[Effect] = (),
+    error_fn: ErrorFn | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Evolve the model population against the robot's results on ``tests``.
 
+    ``observed`` is the robot's (blocks covered, blocks covered once) per test, scored by the
+    paper's six differences; ``error_fn`` may replace that score (e.g. :func:`step_error`).
     Returns the new population (M, 32, 3), sorted best first, and its errors.
     """
     if method not in METHODS:
         raise ValueError(f"unknown recombination method {method!r}; use one of {METHODS}")
     tables = np.array(tables, dtype=np.float64, copy=True)
-    genes = used_gait_ids(tests) if method == "partial" else np.arange(tables.shape[1])
-    error = model_fitness(tables, tests, observed, cfg.budget, effects)
+    genes = used_gait_ids(tests, cfg.budget) if method == "partial" else np.arange(tables.shape[1])
+    if error_fn is None:
+        def error_fn(t: np.ndarray) -> np.ndarray:
+            return model_fitness(t, tests, observed, cfg.budget, effects)
+    error = error_fn(tables)
     for _ in range(generations):
         if len(genes) == 0:
             break
         # In partial mode, slot i's unused genes stay as they are: only genes[] is written.
         tables[:, genes] = breed(tables[:, genes], error, rng, cfg)
-        error = model_fitness(tables, tests, observed, cfg.budget, effects)
+        error = error_fn(tables)
     order = np.argsort(error, kind="stable")
     return tables[order], error[order]

@@ -100,6 +100,7 @@ class PALConfig:
     """Settings of the PAL loop (DESIGN.md 2.5 and the project's GA defaults)."""
 
     method: str = "partial"
+    model_fitness: str = "coverage"  # the paper's six differences; "steps": observed paths
     generations: int = 1000  # CGA generations in all
     interval: int = 40  # CGA generations between punctuations
     model_generations: int = 40  # model GA generations per punctuation
@@ -159,6 +160,26 @@ def perturbations(best: np.ndarray, rng: np.random.Generator, cfg: PALConfig) ->
     return np.stack([a, b])
 
 
+def model_error_fn(tests: np.ndarray, results: list[TestResult], cfg: PALConfig,
+                   effects: Sequence = ()) -> model_ga.ErrorFn:
+    """The model GA's score of disagreement with the robot on these tests (lower is better)."""
+    if cfg.model_fitness == "coverage":
+        observed = np.array([[r.blocks_covered, r.blocks_covered_once] for r in results])
+        return lambda t: model_ga.model_fitness(t, tests, observed, cfg.budget, effects)
+    if cfg.model_fitness == "steps":
+        if any(r.poses is None for r in results):
+            raise InputError("model fitness 'steps' needs the robot's observed paths; this "
+                             "observer reports coverage counts only (use --model-fitness coverage)")
+        return model_ga.step_error(tests, [r.poses for r in results], cfg.budget, effects)
+    raise InputError(f"unknown model fitness {cfg.model_fitness!r}; use one of "
+                     f"{', '.join(model_ga.FITNESSES)}")
+
+
+def _number(v) -> int | float:
+    v = v.item() if hasattr(v, "item") else v
+    return int(v) if float(v).is_integer() else round(float(v), 6)
+
+
 def punctuate(
     state: PALState, robot: Robot, rng: np.random.Generator, cfg: PALConfig = PALConfig()
 ) -> tuple[PALState, dict]:
@@ -180,11 +201,11 @@ def punctuate(
         operational = state.operational
         op_score, op_fit = state.operational_score, state.operational_fitness
 
-    error_before = model_ga.model_fitness(state.models[:1], tests, observed, cfg.budget,
-                                          state.model_effects)[0]
+    error_fn = model_error_fn(tests, results, cfg, state.model_effects)
+    error_before = error_fn(state.models[:1])[0]
     models, errors = model_ga.evolve(
         state.models, tests, observed, cfg.model_generations, rng, cfg.method,
-        cfg.model_config(), state.model_effects,
+        cfg.model_config(), state.model_effects, error_fn,
     )
     record = {
         "generation": state.generation,
@@ -196,9 +217,10 @@ def punctuate(
             for c, o, f in zip(predicted.blocks_covered, predicted.blocks_covered_once,
                                predicted.fitness, strict=True)
         ],
-        "model_error_before": int(error_before),
-        "model_error_after": int(errors[0]),
-        "used_gait_ids": model_ga.used_gait_ids(tests).tolist(),
+        "model_fitness": cfg.model_fitness,
+        "model_error_before": _number(error_before),
+        "model_error_after": _number(errors[0]),
+        "used_gait_ids": model_ga.used_gait_ids(tests, cfg.budget).tolist(),
         "operational": format_turn_cycle(operational),
         "operational_fitness": int(op_fit),
         "operational_replaced": bool(replaced),

@@ -65,6 +65,7 @@ def build_config(**o: object) -> SimConfig:
         echo=o["echo"],
         faults=faults,
         reset_after=o["reset_after"],
+        mute_after=o["mute_after"],
         seed=o["seed"],
         eeprom=o["eeprom"],
         table=load_with_effects(o["table_spec"], o["effect_specs"]),
@@ -139,6 +140,13 @@ def build_config(**o: object) -> SimConfig:
     type=int,
     metavar="N",
     help="Reset the Stamp once, mid-frame, after N gait cycles.",
+)
+@click.option(
+    "--mute-after",
+    default=None,
+    type=int,
+    metavar="N",
+    help="Stop answering after N gait cycles (a pulled cable), mid-run.",
 )
 @click.option("--silent", is_flag=True, help="Never send a byte (a dead or absent Stamp).")
 @click.option(

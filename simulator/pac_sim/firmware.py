@@ -104,6 +104,8 @@ class FirmwareEmulator:
 
     ``reset_after``: reset once, after that many gait cycles since the emulator started, halfway
     through the first frame the program sends after that cycle (its CYCLE report).
+    ``mute_after``: after that many gait cycles, that first frame still sent, nothing more
+    reaches the host (a pulled cable).
     ``error``: why the program stopped serving (not listening, ended, a run-time error).
     """
 
@@ -116,13 +118,14 @@ class FirmwareEmulator:
         *,
         image: str | Path | None = None,
         reset_after: int | None = None,
+        mute_after: int | None = None,
     ) -> None:
         self.line, self.eeprom, self.world = line, eeprom, world
         self.source = str(source)
         self.stamp = load_firmware(source, image)
         check_listens(load_firmware(source, image))
         self.servo = ServoMap.from_constants(self.stamp.program.symbols.con_value, self.source)
-        self.reset_after = reset_after
+        self.reset_after, self.mute_after = reset_after, mute_after
         self.boots = 0  # BOOT frames the program sent
         self.cycles_total = 0  # gait cycles walked since the emulator started, across resets
         self.executed: list[tuple[int, int]] = []  # (cmd, seq) of each LOAD/RUN/STEP acted on
@@ -136,6 +139,8 @@ class FirmwareEmulator:
         self._power_on = 0
         self._prev: int | None = None
         self._cut_after_us: int | None = None
+        self._mute_after_us: int | None = None
+        self._mute_next = False
         self._listened_us = 0
         self._last_seq = 0
 
@@ -191,6 +196,9 @@ class FirmwareEmulator:
             raise StampNotListening(
                 f"{self.source}: the Stamp is not listening: no SERIN for {NOT_LISTENING_S:g} s "
                 f"of Stamp time (running line {s.line_at()})")
+        if self._mute_next:
+            self.line.mute()
+            self._mute_next = False
         self._probe_executed(s)
         pulses = s.servo.pulses
         cycles = self._counter.feed(pulses)
@@ -199,6 +207,8 @@ class FirmwareEmulator:
             self._walk(c.legs, c.end_us)
         if self._cut_after_us is not None and self._cut(s):
             return
+        if self._mute_after_us is not None:
+            self._mute_after_frame(s)
         frames = [b for _, pin, b in s.output.frames if pin == HOST_PIN]
         for f in self._decoder.feed(bytes(frames)):
             if f.cmd == Cmd.BOOT:
@@ -218,16 +228,33 @@ class FirmwareEmulator:
         self._prev = w.gait
         if self.reset_after is not None and self.cycles_total == self.reset_after:
             self._cut_after_us = end_us
+        if self.mute_after is not None and self.cycles_total == self.mute_after:
+            self._mute_after_us = end_us
+
+    def _first_frame_after(self, s: Stamp, t_us: int) -> tuple[int, int] | None:
+        """Where the first frame sent after t_us starts in ``s.output.frames`` and how many
+        bytes it has (None until all of its header is there)."""
+        fr = s.output.frames
+        i = next((k for k, f in enumerate(fr) if f[0] > t_us and f[1] == HOST_PIN), None)
+        if i is None or len(fr) < i + 3:
+            return None
+        return i, fr[i + 2][2] + 6  # LEN + 6 bytes in the frame
+
+    def _mute_after_frame(self, s: Stamp) -> None:
+        """The armed mute: that frame goes out, nothing after it (the line mutes next)."""
+        found = self._first_frame_after(s, self._mute_after_us)
+        if found is not None:
+            i, n = found
+            del s.output.frames[i + n :]
+            self._mute_after_us, self._mute_next = None, True
 
     def _cut(self, s: Stamp) -> bool:
         """The armed reset: keep half of the first frame sent after the cycle, lose the rest."""
-        fr = s.output.frames
-        i = next((k for k, f in enumerate(fr) if f[0] > self._cut_after_us and f[1] == HOST_PIN),
-                 None)
-        if i is None or len(fr) < i + 3:
+        found = self._first_frame_after(s, self._cut_after_us)
+        if found is None:
             return False
-        keep = (fr[i + 2][2] + 6) // 2  # LEN + 6 bytes in the frame
-        del fr[i + keep :]
+        i, n = found
+        del s.output.frames[i + n // 2 :]
         self._cut_after_us = None
         self._restart(s)
         return True

@@ -90,6 +90,7 @@ class PtyLine:
         self.received = 0
         self.lost = 0  # bytes that arrived while the Stamp was not listening
         self._last_rx = time.monotonic()  # when the host last sent a byte
+        self.muted = False  # set by mute(): the cable is pulled, nothing reaches the host
 
     # ---- faults -------------------------------------------------------------------------------
 
@@ -146,7 +147,7 @@ class PtyLine:
             data[0], self._last_rx - before
         ):
             raise DownloadStart(data)  # a reset: whatever the firmware was doing ends here
-        if self.echo and not self.faults.silent:
+        if self.echo and not (self.faults.silent or self.muted):
             self._write(data)
         return self._damage(data)
 
@@ -170,7 +171,7 @@ class PtyLine:
     def deliver(self, data: bytes) -> None:
         """Bytes from the Stamp to the host now, through the line's faults (no pacing: for a
         driver that paces the bytes itself, as the PBASIC host link does)."""
-        if self.faults.silent:
+        if self.faults.silent or self.muted:
             return
         data = self._damage(data)
         self.sent += len(data)
@@ -180,6 +181,11 @@ class PtyLine:
         """Bytes from the host within ``timeout``: echoed if pin 16, damaged by the line's
         faults, never taken for a download (for a driver that runs a program's own SERIN)."""
         return self._read(timeout, downloads=False)
+
+    def mute(self) -> None:
+        """From now on nothing the Stamp sends reaches the host (a pulled cable, a dead
+        level shifter): the host sees a robot that stopped answering."""
+        self.muted = True
 
     def pause(self, seconds: float) -> None:
         """Time passes (walking, EEPROM writes); host bytes arriving meanwhile are lost."""

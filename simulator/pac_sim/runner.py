@@ -34,6 +34,7 @@ class SimConfig:
     echo: bool = False  # emulate the pin-16 programming port's echo
     faults: Faults = Faults()
     reset_after: int | None = None
+    mute_after: int | None = None  # stop answering after this many gait cycles
     seed: int = 0
     eeprom: str | None = None  # persist the turn cycle to this file
     table: GaitTable | str = "shifted"  # the robot's true gait table
@@ -54,8 +55,10 @@ class SimStamp:
 
     def __init__(self, config: SimConfig = SimConfig()) -> None:
         self.config = config
-        if config.reset_after is not None and config.reset_after < 1:
-            raise InputError(f"reset-after must be >= 1 gait cycle, got {config.reset_after}")
+        for name in ("reset_after", "mute_after"):
+            v = getattr(config, name)
+            if v is not None and v < 1:
+                raise InputError(f"{name.replace('_', '-')} must be >= 1 gait cycle, got {v}")
         faults_rng, world_rng = np.random.default_rng(config.seed).spawn(2)
         table = config.table if isinstance(config.table, GaitTable) else resolve_table(config.table)
         self.world = World(table, config.effects, config.start, config.tracker_noise, world_rng)
@@ -95,6 +98,7 @@ class SimStamp:
                 protocol_version=config.protocol_version,
                 firmware_version=config.firmware_version,
                 reset_after=config.reset_after,
+                mute_after=config.mute_after,
             )
         if (config.protocol_version, config.firmware_version) != (
             PROTOCOL_VERSION,
@@ -108,6 +112,7 @@ class SimStamp:
             config.firmware,
             image=config.image,
             reset_after=config.reset_after,
+            mute_after=config.mute_after,
         )
 
     @property

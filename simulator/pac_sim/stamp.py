@@ -58,7 +58,8 @@ class StampEmulator:
     """Runs the firmware loop on a :class:`Line` until the line is stopped.
 
     ``reset_after``: reset once, after that many gait cycles since the emulator started, in the
-    middle of sending that cycle's CYCLE report (a reset mid-frame).
+    middle of sending that cycle's CYCLE report (a reset mid-frame). ``mute_after``: after that
+    many gait cycles (that cycle's CYCLE report still sent), nothing more reaches the host.
     """
 
     def __init__(
@@ -70,6 +71,7 @@ class StampEmulator:
         protocol_version: int = PROTOCOL_VERSION,
         firmware_version: int = FIRMWARE_VERSION,
         reset_after: int | None = None,
+        mute_after: int | None = None,
     ) -> None:
         self.line = line
         self.eeprom = eeprom or Eeprom()
@@ -77,6 +79,7 @@ class StampEmulator:
         self.protocol_version = protocol_version
         self.firmware_version = firmware_version
         self.reset_after = reset_after
+        self.mute_after = mute_after
         self.boots = 0
         self.cycles_total = 0  # gait cycles since the emulator started, across resets
         self.executed: list[tuple[int, int]] = []  # (cmd, seq) of every request acted on
@@ -288,6 +291,8 @@ class StampEmulator:
                     self.line.send(report[: len(report) // 2])
                     raise _Reset
                 self.line.send(report)
+                if self.mute_after is not None and self.cycles_total == self.mute_after:
+                    self.line.mute()
                 if k < n - 1:
                     req = self._listen(state, T_RUN_S)
                     if req is not None and self._dispatch(req):

@@ -2,6 +2,10 @@
 
 Line format (simulator/README.md): ``POSE <seq> <gait> <power_on> <x_cm> <y_cm> <h_deg>``.
 A client first receives a ``#`` header line and a snapshot (gait -1) of the current pose.
+
+A client may also place the robot, as an operator would before a run: it sends
+``PLACE <x_cm> <y_cm> <h_deg> [<noise_seed>]`` and receives ``PLACED <x_cm> <y_cm> <h_deg>``,
+the pose the tracker then sees (``ERROR <why>`` for a line it cannot parse).
 """
 
 from __future__ import annotations
@@ -17,6 +21,18 @@ HEADER = "# pac-sim tracker 1: POSE seq gait cycles_since_power_on x_cm y_cm h_d
 def format_pose(s: PoseSample) -> str:
     x, y, h = s.observed
     return f"POSE {s.seq} {s.gait} {s.power_on} {x:.3f} {y:.3f} {h:.3f}\n"
+
+
+def parse_place(line: str) -> tuple[tuple[float, float, float], int | None]:
+    """Parse ``PLACE x y h [seed]`` into the pose and the noise seed (None if not given)."""
+    parts = line.split()
+    if parts[:1] != ["PLACE"] or len(parts) not in (4, 5):
+        raise ValueError(f"expected PLACE x y h [seed], got {line.strip()!r}")
+    pose = (float(parts[1]), float(parts[2]), float(parts[3]))
+    seed = int(parts[4]) if len(parts) == 5 else None
+    if seed is not None and seed < 0:
+        raise ValueError(f"noise seed must be >= 0, got {seed}")
+    return pose, seed
 
 
 def parse_pose(line: str) -> PoseSample:
@@ -56,6 +72,38 @@ class TrackerServer:
                 continue
             with self._lock:
                 self._clients.append(conn)
+            threading.Thread(target=self._serve, args=(conn,), name="pac-sim-tracker-client",
+                             daemon=True).start()
+
+    def _serve(self, conn: socket.socket) -> None:
+        """Answer the client's PLACE lines until it disconnects."""
+        buf = b""
+        while not self._closed.is_set():
+            try:
+                chunk = conn.recv(4096)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            if not chunk:
+                return
+            buf += chunk
+            while b"\n" in buf:
+                raw, buf = buf.split(b"\n", 1)
+                line = raw.decode(errors="replace").strip()
+                if not line:
+                    continue
+                try:
+                    pose, seed = parse_place(line)
+                    x, y, h = self.world.place(pose, seed)
+                    reply = f"PLACED {x:.3f} {y:.3f} {h:.3f}\n"
+                except ValueError as e:
+                    reply = f"ERROR {e}\n"
+                with self._lock:
+                    try:
+                        conn.sendall(reply.encode())
+                    except OSError:
+                        return
 
     def publish(self, sample: PoseSample) -> None:
         data = format_pose(sample).encode()

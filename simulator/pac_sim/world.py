@@ -77,6 +77,20 @@ class World:
             ob(s)
         return s
 
+    def place(
+        self, pose: Sequence[float], noise_seed: int | None = None
+    ) -> tuple[float, float, float]:
+        """Put the robot at ``pose``, as an operator does before a run; returns the pose the
+        tracker sees there. ``noise_seed`` restarts the tracker's noise streams, so the noise of
+        a run depends on the run alone and not on what the emulator did before it (an
+        interrupted experiment resumed in a new process sees the same noise)."""
+        with self._lock:
+            self.pose = np.asarray(pose, dtype=np.float64).copy()
+            if noise_seed is not None:
+                seq = np.random.SeedSequence(noise_seed)
+                self._cycle_rng, self._snap_rng = (np.random.default_rng(s) for s in seq.spawn(2))
+            return self._observe(self._snap_rng)
+
     def snapshot(self) -> PoseSample:
         """The current pose as the tracker sees it now (its noise from a separate stream)."""
         with self._lock:

@@ -135,3 +135,38 @@ def test_model_ga_rejects_unknown_method():
     rng, tests, observed, models = _gap_setup()
     with pytest.raises(ValueError, match="unknown recombination"):
         model_ga.evolve(models, tests, observed, 1, rng, "half")
+
+
+def test_step_error_is_zero_for_the_robot_itself_and_positive_otherwise():
+    rng = np.random.default_rng(12)
+    tests = cga.random_population(rng, 3)
+    cov = simulate(A, tests, 120, keep_paths=True)
+    err = model_ga.step_error(tests, list(cov.poses), 120)
+    got = err(np.stack([A, M]))
+    assert got[0] == pytest.approx(0.0, abs=1e-9)
+    assert got[1] > 0.1
+
+
+def test_step_error_only_sees_the_rows_the_tests_use():
+    rng = np.random.default_rng(13)
+    tests = cga.random_population(rng, 3)
+    tests[:, 3:, 1] = 0  # three genes each
+    cov = simulate(A, tests, 80, keep_paths=True)
+    err = model_ga.step_error(tests, list(cov.poses), 80)
+    unused = np.setdiff1d(np.arange(32), model_ga.used_gait_ids(tests, 80))
+    other = A.copy()
+    other[unused] += 5.0
+    assert err(other[None])[0] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_partial_recombination_with_step_error_converges_on_the_used_rows():
+    rng = np.random.default_rng(14)
+    tests = cga.random_population(rng, 3)
+    cov = simulate(A, tests, keep_paths=True)
+    err = model_ga.step_error(tests, list(cov.poses))
+    models = model_ga.perturbed_population(M, 64, rng)
+    used = model_ga.used_gait_ids(tests)
+    before = np.abs(models[0, used] - A[used]).mean()
+    new, errors = model_ga.evolve(models, tests, None, 60, rng, "partial", error_fn=err)
+    assert errors[0] < err(models).min()
+    assert np.abs(new[0, used] - A[used]).mean() < 0.65 * before

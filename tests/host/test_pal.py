@@ -71,8 +71,12 @@ def test_pal_records_say_what_happened():
     rec = _run(5)[0]
     assert len(rec["tests"]) == 3 and len(rec["observed"]) == 3
     assert rec["model_error_after"] <= rec["model_error_before"]
-    assert set(rec["used_gait_ids"]) == {int(g.split(":")[0]) for t in rec["tests"]
-                                         for g in t.split(",")}
+    from pac_host.coverage import expand
+
+    tests = np.stack([parse_turn_cycle(t) for t in rec["tests"]])
+    executed = expand(tests, SMALL.budget)[0]
+    assert set(rec["used_gait_ids"]) == set(executed.ravel().tolist())
+    assert rec["used_gait_ids"][0] == executed[0, 0]
 
 
 def test_state_round_trip_resumes_bit_for_bit():
@@ -94,3 +98,15 @@ def test_state_round_trip_resumes_bit_for_bit():
     rest = []
     pal.run(state, robot, rng, cfg, lambda s, r: rest.append(r))
     assert [first] + rest == whole
+
+
+def test_step_fitness_needs_observed_paths():
+    import pytest
+
+    from pac_host.errors import InputError
+
+    cfg = pal.PALConfig(**{**SMALL.__dict__, "model_fitness": "steps"})
+    rng = np.random.default_rng(1)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    with pytest.raises(InputError, match="needs the robot's observed paths"):
+        pal.punctuate(state, _ScriptedRobot([5]), rng, cfg)

@@ -3,6 +3,8 @@ during RUN, echo, silence, version mismatch, bad ports, garbage, damaged bytes, 
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -201,3 +203,23 @@ def test_stop_from_a_second_session_while_running(make_sim):
     second.port.close()
     st = first.status()
     assert st.state == State.IDLE and 0 < st.done < 5000 and sim.world.seq == st.done
+
+
+def test_mute_after_n_gait_cycles(make_sim):
+    """A pulled cable: the CYCLE report of gait cycle 4 still arrives, then nothing; the robot
+    itself walks on (the world keeps moving)."""
+    sim, port = make_sim(mute_after=4)
+    link = StampLink(port, name=sim.path, ready_timeout=0.3)
+    link.hello()
+    link.step(12, 9)
+    cycles = []
+    while (ev := link.next_event(0.5)) is not None:
+        cycles.append(ev)
+    assert [c.done for c in cycles if c.CMD == Cmd.CYCLE] == [1, 2, 3, 4]
+    assert all(c.CMD == Cmd.CYCLE for c in cycles)  # no DONE, no READY after the fourth
+    with pytest.raises(NoAnswer):
+        link.status()
+    deadline = time.monotonic() + 3.0
+    while sim.world.seq < 9 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert sim.world.seq == 9

@@ -34,6 +34,10 @@ from pac_host.plots import experiment_plots
 @effect_option()
 @click.option("--model", "model_spec", default="measured", show_default=True,
               metavar="measured|shifted|FILE", help="The model the CGA starts on.")
+@click.option("--model-fitness", default="coverage", show_default=True,
+              type=click.Choice(["coverage", "steps"]),
+              help="Model GA score: the paper's six coverage differences, or one-step "
+                   "residuals of the observed paths (a project extension).")
 @click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
               help="Gait cycles per test run.")
 @click.option("--initial-generations", default=1000, show_default=True, type=int,
@@ -43,8 +47,8 @@ from pac_host.plots import experiment_plots
 @click.option("--optimum-generations", default=3000, show_default=True, type=int)
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
-                   effect_specs, model_spec, budget, initial_generations, optimum_runs,
-                   optimum_generations, resume) -> None:
+                   effect_specs, model_spec, model_fitness, budget, initial_generations,
+                   optimum_runs, optimum_generations, resume) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Writes OUT/summary.json (per method and seed: operational coverage on the actual robot at
@@ -59,7 +63,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
         base_seed=base_seed, initial_generations=initial_generations,
         optimum_runs=optimum_runs, optimum_generations=optimum_generations,
-        pal=replace(PALConfig(), budget=check_budget(budget)),
+        pal=replace(PALConfig(), budget=check_budget(budget), model_fitness=model_fitness),
     )
     actual = load_with_effects(actual_spec, effect_specs)
     model = resolve_table(model_spec)

@@ -36,15 +36,29 @@ def main() -> None:
 
     A cyclic GA learns a looped sequence of gait cycles on a model of the robot; a model GA with
     partial recombination corrects the model from periodic tests on the robot (punctuated
-    anytime learning). Start with `pac-host table show`, `pac-host simulate --help` and
-    `pac-host experiment --help`.
+    anytime learning).
+
+    \b
+    Without hardware:  simulate, experiment (the paper's experiment), evolve (PAL over the
+                       serial protocol against the built-in emulator)
+    On the robot:      robot hello|status|..., flash, evolve --port, measure
+    When model and robot disagree:  diagnose --model TABLE --runs RUNS.jsonl
     """
 
 
 def _register() -> None:
-    from pac_host.cli import experiment, flash, robot, simulate, table
+    from pac_host.cli import (
+        diagnose,
+        evolve,
+        experiment,
+        flash,
+        measure,
+        robot,
+        simulate,
+        table,
+    )
 
-    for mod in (table, simulate, experiment, robot, flash):
+    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash):
         mod.register(main)
 
 

@@ -13,9 +13,9 @@ from collections.abc import Iterator
 import click
 
 from pac_host.errors import InputError
-from pac_protocol.link import READY_TIMEOUT_S, StampLink, check_genes
-from pac_protocol.messages import MAX_GAIT, Cycle, Reason, State
-from pac_protocol.port import open_port
+from pac_host.robot.api import RunReport, StampRobot
+from pac_protocol.link import READY_TIMEOUT_S, check_genes
+from pac_protocol.messages import MAX_GAIT, Cycle, State
 
 
 def _port_options(f):
@@ -36,15 +36,10 @@ def _port_options(f):
 
 
 @contextlib.contextmanager
-def session(port: str, timeout: float) -> Iterator[StampLink]:
-    """An open port and a link that has said HELLO."""
-    ser = open_port(port)
-    try:
-        link = StampLink(ser, name=port, ready_timeout=timeout)
-        link.hello()
-        yield link
-    finally:
-        ser.close()
+def session(port: str, timeout: float) -> Iterator[StampRobot]:
+    """An open port and a robot that has said HELLO."""
+    with StampRobot.open(port, ready_timeout=timeout) as robot:
+        yield robot
 
 
 def _positive(value: int, name: str, hi: int = 65535) -> int:
@@ -65,19 +60,20 @@ def parse_genes(text: str) -> list[tuple[int, int]]:
     return genes
 
 
-def _follow(link: StampLink, total: int) -> None:
-    """Print each gait cycle until DONE; Ctrl-C sends STOP and waits for the Stamp to halt."""
+def _walk(robot: StampRobot, total: int, start) -> None:
+    """Start a run with ``start(on_cycle)``, print each gait cycle until it ends; Ctrl-C sends
+    STOP and waits for the Stamp to halt."""
 
     def show(c: Cycle) -> None:
         click.echo(f"gait cycle {c.done}/{total}: gait {c.gait} (since power-on {c.power_on})")
 
     try:
-        _, done = link.wait_done(on_cycle=show)
+        rep: RunReport = start(show)
     except KeyboardInterrupt:
-        link.stop()
-        _, done = link.wait_done(on_cycle=show)
-    how = "completed" if done.reason == Reason.COMPLETED else "stopped"
-    click.echo(f"done: {how} after {done.done} gait cycles")
+        robot.stop()
+        rep = robot.follow(total, on_cycle=show)
+    how = "completed" if rep.completed else "stopped"
+    click.echo(f"done: {how} after {rep.done} gait cycles")
 
 
 def register(main: click.Group) -> None:
@@ -89,11 +85,8 @@ def register(main: click.Group) -> None:
     @_port_options
     def hello(port: str, timeout: float) -> None:
         """Check the Stamp answers and speaks this protocol version."""
-        ser = open_port(port)
-        try:
-            r = StampLink(ser, name=port, ready_timeout=timeout).hello()
-        finally:
-            ser.close()
+        with session(port, timeout) as robot:
+            r = robot.info
         click.echo(
             f"{port}: protocol {r.protocol}, firmware {r.firmware}, up to {r.max_genes} genes"
         )
@@ -102,10 +95,10 @@ def register(main: click.Group) -> None:
     @_port_options
     def status(port: str, timeout: float) -> None:
         """What the Stamp is doing and what it has stored."""
-        with session(port, timeout) as link:
-            s = link.status()
-            genes = [link.read_gene(i) for i in range(s.count)]
-        stored = ",".join(f"{g.gait}:{g.reps}" for g in genes) or "none"
+        with session(port, timeout) as robot:
+            s = robot.status()
+            genes = robot.stored()
+        stored = ",".join(f"{g}:{r}" for g, r in genes) or "none"
         click.echo(
             f"state {State(s.state).name.lower()}, gait cycles done {s.done}, since power-on "
             f"{s.power_on}, turn cycle {stored}"
@@ -120,9 +113,8 @@ def register(main: click.Group) -> None:
         if not 0 <= gait <= MAX_GAIT:
             raise InputError(f"gait id must be 0..{MAX_GAIT}, got {gait}")
         _positive(reps, "repetitions")
-        with session(port, timeout) as link:
-            link.step(gait, reps)
-            _follow(link, reps)
+        with session(port, timeout) as robot:
+            _walk(robot, reps, lambda show: robot.step(gait, reps, show))
 
     @robot.command()
     @_port_options
@@ -130,8 +122,8 @@ def register(main: click.Group) -> None:
     def load(port: str, timeout: float, genes: str) -> None:
         """Store a turn cycle GAIT:REPS,... (1..9 genes) in the Stamp's EEPROM."""
         tc = parse_genes(genes)
-        with session(port, timeout) as link:
-            link.load(tc)
+        with session(port, timeout) as robot:
+            robot.load(tc)
         click.echo(f"stored {len(tc)} genes")
 
     @robot.command()
@@ -140,14 +132,13 @@ def register(main: click.Group) -> None:
     def run(port: str, timeout: float, cycles: int) -> None:
         """Run the stored turn cycle for CYCLES gait cycles (Ctrl-C stops)."""
         _positive(cycles, "gait cycles")
-        with session(port, timeout) as link:
-            link.run(cycles)
-            _follow(link, cycles)
+        with session(port, timeout) as robot:
+            _walk(robot, cycles, lambda show: robot.run(cycles, show))
 
     @robot.command()
     @_port_options
     def stop(port: str, timeout: float) -> None:
         """Stop a run at the next gait-cycle boundary."""
-        with session(port, timeout) as link:
-            link.stop()
+        with session(port, timeout) as robot:
+            robot.stop()
         click.echo("stop acknowledged")

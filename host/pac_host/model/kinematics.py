@@ -51,6 +51,7 @@ def integrate_path(
     world: np.ndarray | None = None,
     cmoves: np.ndarray | None = None,
     headings: bool = True,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Path:
     """Integrate body-frame moves (..., n, 3) from a start pose (..., 3) into a :class:`Path`.
 
@@ -60,7 +61,8 @@ def integrate_path(
     cumulative sum, with no per-step trigonometry. ``cmoves`` may supply the moves already in
     that form (see :func:`complex_moves`), e.g. looked up per gait id from a table of 32;
     ``body`` then only needs to provide dH for the headings. ``world`` (..., n, 2) is a
-    world-frame drift added after each move.
+    world-frame drift added after each move. ``out`` may give two complex arrays (..., n + 1)
+    to work in (heading and position), so a hot loop need not allocate them each call.
     """
     start_pose = np.asarray(start_pose, dtype=np.float64)
     if cmoves is None:
@@ -68,11 +70,11 @@ def integrate_path(
     n = cmoves.shape[-2]
     lead = np.broadcast_shapes(start_pose.shape[:-1], cmoves.shape[:-2])
     # the start pose goes in as element 0, so one in-place scan carries it along
-    q = np.empty(lead + (n + 1,), dtype=np.complex128)
+    q, p = out if out is not None else (np.empty(lead + (n + 1,), dtype=np.complex128),
+                                        np.empty(lead + (n + 1,), dtype=np.complex128))
     q[..., 0] = np.exp(-1j * np.radians(start_pose[..., 2]))
     q[..., 1:] = cmoves[..., 1]
     np.multiply.accumulate(q, axis=-1, out=q)
-    p = np.empty(lead + (n + 1,), dtype=np.complex128)
     p[..., 0] = start_pose[..., 0] + 1j * start_pose[..., 1]
     np.multiply(cmoves[..., 0], q[..., :-1], out=p[..., 1:])
     if world is not None:

@@ -1,0 +1,293 @@
+"""Blind benchmark of `pac-host diagnose`: recover effects withheld from the method.
+
+Each case draws a true table (the measured one, or a perturbed one for half the cases), an
+effect or a pair of effects with parameters from the stated moderate ranges
+(``pac_host.diagnose.synth.MODERATE``), 40 turn cycles of the kind a PAL session tests
+(a short CGA run and the paper's perturbations), runs each for 60 gait cycles in the world
+(the effects code the emulator uses) with tracker noise, holds out 30% of the runs, and runs the
+diagnosis without telling it the effect. Categories:
+
+- single: one effect in the library; scores top-1 (first selected effect is the true one),
+  exact (selected set is exactly it), parameter error, held-out rollout shrink;
+- pair: two effects; recall of both;
+- null: no effect; a false positive is any selected effect or a verdict other than
+  no_significant_gap;
+- withheld: one effect, removed from the library; scores how often the verdict is
+  partly_unexplained rather than a confident wrong name;
+- single_high_noise: singles with three times the tracker noise (no target);
+- table_error: no effect, but the model is the measured table while the robot is a
+  re-measured one (every entry off by 0.3 cm / 0.5 deg): a gap no effect explains;
+- null_step_noise / single_step_noise: the robot also varies by itself from step to step
+  (0.3 cm on F and T, 0.6 deg on dH per gait cycle), which the noise floor must absorb;
+- weak_short: singles at a quarter of the moderate magnitude on 12 runs of 30 gait cycles with
+  high noise: where the method runs out of data (no target; shows the failure modes).
+
+Shrink is 1 - (held-out rollout end error after) / (before); the excess shrink divides by the
+part above the oracle's error (the true model's own error, tracker noise alone).
+
+Usage: ``python bench/run.py --only diagnose [--quick]`` or ``make bench-diagnose``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from pac_host.diagnose import diagnose
+from pac_host.diagnose.residuals import batch_of, end_errors
+from pac_host.diagnose.synth import MODERATE, blind_case, moderate_effect
+from pac_host.model.effects import EFFECT_SPECS, Effect
+from pac_host.model.table import GaitTable, measured_table
+
+NAMES = list(EFFECT_SPECS)
+NOISE = {"moderate": (0.5, 1.0), "high": (1.5, 3.0)}
+SEED = 2024
+KINDS = ("single", "pair", "null", "withheld", "single_high_noise", "table_error", "weak_short",
+         "null_step_noise", "single_step_noise")
+STEP_NOISE = (0.3, 0.6)  # the robot's own step variability: cm on F and T, deg on dH
+WEAK = 0.25  # weak_short cases: a quarter of a moderate magnitude ...
+SHORT = (12, 30)  # ... on 12 runs of 30 gait cycles, with high tracker noise
+
+
+def _param_error(true, est) -> float:
+    """Relative error of the estimate; floor_slope as the drift vector; turn_shift 0 or 1."""
+    if est is None:
+        return float("nan")
+    if true.name == "turn_shift":
+        return float(est.params["k"] != true.params["k"])
+    if true.name == "floor_slope":
+        def vec(e):
+            th = np.radians(e.params["theta"])
+            return e.params["s"] * np.array([np.sin(th), np.cos(th)])
+        return float(np.linalg.norm(vec(est) - vec(true)) / true.params["s"])
+    (k,) = true.params
+    ref = true.params[k] - EFFECT_SPECS[true.name].params[0].neutral
+    return float(abs(est.params[k] - true.params[k]) / abs(ref))
+
+
+def _weaker(effect: Effect, f: float) -> Effect:
+    """The effect moved towards neutral: parameter = neutral + f (parameter - neutral)."""
+    if effect.name == "turn_shift":
+        return effect
+    if effect.name == "floor_slope":
+        return Effect("floor_slope", {"s": f * effect.params["s"],
+                                      "theta": effect.params["theta"]})
+    (p,) = EFFECT_SPECS[effect.name].params
+    return Effect(effect.name, {p.name: p.neutral + f * (effect.params[p.name] - p.neutral)})
+
+
+def _case(kind: str, index: int, effects, noise, library=None, perturb=False,
+          model_rows=None, size=(40, 60), step_noise=(0.0, 0.0)) -> dict:
+    rng = np.random.default_rng([SEED, KINDS.index(kind), index])
+    rows, fit, hold = blind_case(rng, effects, n_runs=size[0], n_cycles=size[1],
+                                 pos_noise_cm=noise[0], heading_noise_deg=noise[1],
+                                 perturb_table=perturb, step_noise=step_noise)
+    t0 = time.perf_counter()
+    d = diagnose(GaitTable(rows if model_rows is None else model_rows), fit, hold, rng, library)
+    wall = time.perf_counter() - t0
+    # the oracle: the true model's own held-out rollout error (tracker noise alone)
+    oracle = float(end_errors(rows, batch_of(hold), effects).mean())
+    before, after = d.holdout["rollout_cm_before"], d.holdout["rollout_cm_after"]
+    excess = (before - after) / (before - oracle) if before > oracle else float("nan")
+    sel = [e.name for e in d.selected]
+    return {"kind": kind, "true": [str(e) for e in effects],
+            "true_names": [e.name for e in effects],
+            "selected": sel, "selected_effects": [str(e) for e in d.selected],
+            "verdict": d.verdict, "shrink": d.holdout["shrink"],
+            "rollout_cm_before": d.holdout["rollout_cm_before"],
+            "rollout_cm_after": d.holdout["rollout_cm_after"], "rollout_cm_oracle": oracle,
+            "excess_shrink": excess,
+            "param_error": [_param_error(t, next((e for e in d.selected if e.name == t.name),
+                                                 None)) for t in effects],
+            "alike": d.selection.alike, "informative": d.informative, "notes": d.notes,
+            "wall_s": round(wall, 3)}
+
+
+def _rng_effects(rng, names):
+    return [moderate_effect(n, rng) for n in names]
+
+
+def run(quick: bool = False) -> dict:
+    n_single = 2 if quick else 15
+    n_pair = 4 if quick else 30
+    n_null = 6 if quick else 60
+    n_withheld = 1 if quick else 5
+    n_high = 0 if quick else 3
+    n_table = 0 if quick else 10
+    n_weak = 0 if quick else 5
+    n_step = 1 if quick else 3
+    pick = np.random.default_rng(SEED)
+    cases = []
+    for name in NAMES:
+        for i in range(n_single):
+            eff = [moderate_effect(name, np.random.default_rng([SEED, 1, NAMES.index(name), i]))]
+            cases.append(_case("single", len(cases), eff, NOISE["moderate"], perturb=i % 2 == 1))
+    for i in range(n_pair):
+        a, b = pick.choice(len(NAMES), size=2, replace=False)
+        eff = _rng_effects(np.random.default_rng([SEED, 2, i]), [NAMES[a], NAMES[b]])
+        cases.append(_case("pair", len(cases), eff, NOISE["moderate"], perturb=i % 2 == 1))
+    for i in range(n_null):
+        cases.append(_case("null", len(cases), [], NOISE["moderate"], perturb=i % 2 == 1))
+    for name in NAMES:
+        for i in range(n_withheld):
+            eff = [moderate_effect(name, np.random.default_rng([SEED, 3, NAMES.index(name), i]))]
+            lib = [n for n in NAMES if n != name]
+            cases.append(_case("withheld", len(cases), eff, NOISE["moderate"], lib,
+                               perturb=i % 2 == 1))
+    for name in NAMES:
+        for i in range(n_high):
+            eff = [moderate_effect(name, np.random.default_rng([SEED, 4, NAMES.index(name), i]))]
+            cases.append(_case("single_high_noise", len(cases), eff, NOISE["high"],
+                               perturb=i % 2 == 1))
+    for _ in range(n_table):  # the model is the measured table, the robot a re-measured one
+        cases.append(_case("table_error", len(cases), [], NOISE["moderate"], perturb=True,
+                           model_rows=measured_table().rows))
+    for name in NAMES:
+        for i in range(n_weak):
+            eff = [_weaker(moderate_effect(name, np.random.default_rng([SEED, 6, NAMES.index(name),
+                                                                        i])), WEAK)]
+            cases.append(_case("weak_short", len(cases), eff, NOISE["high"], size=SHORT,
+                               perturb=i % 2 == 1))
+    for i in range(n_step * 5):
+        cases.append(_case("null_step_noise", len(cases), [], NOISE["moderate"],
+                           perturb=i % 2 == 1, step_noise=STEP_NOISE))
+    for name in NAMES:
+        for i in range(n_step):
+            eff = [moderate_effect(name, np.random.default_rng([SEED, 8, NAMES.index(name), i]))]
+            cases.append(_case("single_step_noise", len(cases), eff, NOISE["moderate"],
+                               perturb=i % 2 == 1, step_noise=STEP_NOISE))
+    return summarize(cases, quick)
+
+
+def _named_or_alike(c: dict) -> bool:
+    """The true effect is named first, or named as alike to the first named effect."""
+    if not c["selected"]:
+        return False
+    first = c["selected"][0]
+    return first in c["true_names"] or bool(set(c["alike"].get(first, [])) & set(c["true_names"]))
+
+
+def _confident_wrong(c: dict) -> bool:
+    """A wrong effect named, without an alike hint or a caution, and the gap called explained."""
+    return (bool(c["selected"]) and c["verdict"] == "explained" and c["informative"]
+            and not _named_or_alike(c))
+
+
+def _frac(xs) -> float:
+    xs = list(xs)
+    return round(float(np.mean(xs)), 4) if xs else float("nan")
+
+
+def summarize(cases: list[dict], quick: bool) -> dict:
+    by = {k: [c for c in cases if c["kind"] == k] for k in KINDS}
+    singles = by["single"]
+    per_effect = {}
+    for name in NAMES:
+        cs = [c for c in singles if c["true_names"] == [name]]
+        if not cs:
+            continue
+        errs = [c["param_error"][0] for c in cs if c["selected"] and c["selected"][0] == name]
+        per_effect[name] = {
+            "cases": len(cs),
+            "top1": _frac(c["selected"][:1] == [name] for c in cs),
+            "exact": _frac(c["selected"] == [name] for c in cs),
+            "median_param_error": round(float(np.median(errs)), 4) if errs else None,
+            "median_shrink": round(float(np.median([c["shrink"] for c in cs])), 4),
+            "median_rollout_cm": [round(float(np.median([c[k] for c in cs])), 2) for k in
+                                  ("rollout_cm_before", "rollout_cm_after",
+                                   "rollout_cm_oracle")],
+            "median_excess_shrink": round(float(np.nanmedian([c["excess_shrink"] for c in cs])),
+                                          4),
+            "named_instead": sorted({c["selected"][0] for c in cs
+                                     if c["selected"] and c["selected"][0] != name}),
+        }
+    withheld = {}
+    for name in NAMES:
+        cs = [c for c in by["withheld"] if c["true_names"] == [name]]
+        if cs:
+            withheld[name] = {"partly_unexplained": _frac(c["verdict"] == "partly_unexplained"
+                                                          for c in cs),
+                              "verdicts": [c["verdict"] for c in cs],
+                              "named": [c["selected"] for c in cs]}
+    high = by["single_high_noise"]
+    top1 = _frac(c["selected"][:1] == c["true_names"] for c in singles)
+    fp = _frac(bool(c["selected"]) or c["verdict"] != "no_significant_gap" for c in by["null"])
+    shrinks = [c["shrink"] for c in singles]
+    shrink_med = round(float(np.median(shrinks)), 4)
+    res = {
+        "quick": quick,
+        "noise": {"moderate": {"pos_cm": NOISE["moderate"][0],
+                               "heading_deg": NOISE["moderate"][1]},
+                  "high": {"pos_cm": NOISE["high"][0], "heading_deg": NOISE["high"][1]}},
+        "ranges": {n: MODERATE[n][1] for n in NAMES},
+        "data": "40 runs x 60 gait cycles, 30% held out, CGA-like turn cycles",
+        "cases": {k: len(v) for k, v in by.items()},
+        "single_top1": top1,
+        "single_informative": _frac(c["informative"] for c in singles),
+        "single_exact": _frac(c["selected"] == c["true_names"] for c in singles),
+        "single_median_shrink": shrink_med,
+        "single_shrink_at_least_80pct": _frac(s >= 0.8 for s in shrinks),
+        "per_effect": per_effect,
+        "pair_recall": _frac(len(set(c["selected"]) & set(c["true_names"])) / 2
+                             for c in by["pair"]),
+        "pair_both_found": _frac(set(c["true_names"]) <= set(c["selected"]) for c in by["pair"]),
+        "pair_misses": [{"true": c["true"], "selected": c["selected_effects"],
+                         "verdict": c["verdict"]}
+                        for c in by["pair"] if not set(c["true_names"]) <= set(c["selected"])],
+        "null_false_positive": fp,
+        "null_selected_any": _frac(bool(c["selected"]) for c in by["null"]),
+        "withheld_partly_unexplained": _frac(c["verdict"] == "partly_unexplained"
+                                             for c in by["withheld"]),
+        "withheld_confident_wrong": _frac(c["verdict"] == "explained" for c in by["withheld"]),
+        "withheld_per_effect": withheld,
+        "high_noise_top1": _frac(c["selected"][:1] == c["true_names"] for c in high),
+        "high_noise_median_shrink": (round(float(np.median([c["shrink"] for c in high])), 4)
+                                     if high else None),
+        "table_error_verdicts": {v: sum(c["verdict"] == v for c in by["table_error"])
+                                 for v in ("no_significant_gap", "explained",
+                                           "partly_unexplained")},
+        "table_error_named": [c["selected"] for c in by["table_error"]],
+        "single_median_excess_shrink": round(float(np.nanmedian(
+            [c["excess_shrink"] for c in singles])), 4),
+        "weak_short": {
+            "what": f"{WEAK} x moderate magnitude, {SHORT[0]} runs x {SHORT[1]} cycles, high noise",
+            "top1": _frac(c["selected"][:1] == c["true_names"] for c in by["weak_short"]),
+            "verdicts": {v: sum(c["verdict"] == v for c in by["weak_short"])
+                         for v in ("no_significant_gap", "explained", "partly_unexplained")},
+            "named_or_alike": _frac(_named_or_alike(c) for c in by["weak_short"]),
+            "confident_wrong": _frac(_confident_wrong(c) for c in by["weak_short"]),
+            "cases": [{"true": c["true"], "selected": c["selected_effects"],
+                       "verdict": c["verdict"], "alike": c["alike"],
+                       "informative": c["informative"], "notes": c["notes"]}
+                      for c in by["weak_short"]],
+        },
+        "step_noise": {"cm": STEP_NOISE[0], "deg": STEP_NOISE[1]},
+        "step_noise_false_positive": _frac(bool(c["selected"])
+                                           or c["verdict"] != "no_significant_gap"
+                                           for c in by["null_step_noise"]),
+        "step_noise_top1": _frac(c["selected"][:1] == c["true_names"]
+                                 for c in by["single_step_noise"]),
+        "step_noise_median_shrink": (round(float(np.median(
+            [c["shrink"] for c in by["single_step_noise"]])), 4)
+            if by["single_step_noise"] else None),
+        "median_diagnosis_s": round(float(np.median([c["wall_s"] for c in cases])), 3),
+        "max_diagnosis_s": round(float(np.max([c["wall_s"] for c in cases])), 3),
+        "failures": [c for c in singles if c["selected"][:1] != c["true_names"]],
+        "single_uninformative": [{"true": c["true"], "selected": c["selected_effects"],
+                                  "notes": c["notes"]} for c in singles if not c["informative"]],
+    }
+    res["targets"] = {
+        "single_top1": {"value": top1, "target": ">= 0.95", "met": top1 >= 0.95},
+        "null_false_positive": {"value": fp, "target": "<= 0.05", "met": fp <= 0.05},
+        "single_median_shrink": {"value": shrink_med, "target": ">= 0.80",
+                                 "met": shrink_med >= 0.8},
+    }
+    return res
+
+
+if __name__ == "__main__":
+    import json
+    import sys
+
+    print(json.dumps(run(quick="--quick" in sys.argv), indent=1))

@@ -1,0 +1,115 @@
+"""`pac-host evolve`: PAL with the robot link (the built-in emulator without --port)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import click
+
+from pac_host.cli.link_options import ask, confirm, emulator_options, given, link_options
+from pac_host.errors import InputError
+from pac_host.evolve import EvolveConfig, evolve, load_config, save_config
+from pac_host.model.table import BUILTIN
+from pac_host.robot.connect import connect
+
+
+@click.command("evolve")
+@link_options
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Directory for the run's files (required unless --resume).")
+@click.option("--resume", "resume_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Continue the run in this directory from its last complete punctuation.")
+@click.option("--generations", default=1000, show_default=True, type=int,
+              help="CGA generations in all.")
+@click.option("--interval", default=40, show_default=True, type=int,
+              help="CGA generations between punctuations (tests on the robot).")
+@click.option("--method", default="partial", show_default=True,
+              type=click.Choice(["partial", "full"]), help="Model GA recombination.")
+@click.option("--model-fitness", default="coverage", show_default=True,
+              type=click.Choice(["coverage", "steps"]),
+              help="Model GA score: the paper's six coverage differences, or the observed "
+                   "paths' one-step residuals (needs a tracker, not manual counts).")
+@click.option("--seed", default=0, show_default=True, type=int,
+              help="Seeds the GAs and the emulator's per-run tracker noise.")
+@click.option("--budget", default=200, show_default=True, type=int,
+              help="Gait cycles per test run.")
+@click.option("--model", "model_spec", default="measured", show_default=True,
+              metavar="measured|shifted|FILE", help="The model the CGA starts on.")
+@click.option("--cga-population", default=128, show_default=True, type=int)
+@click.option("--model-population", default=64, show_default=True, type=int)
+@click.option("--model-generations", default=40, show_default=True, type=int,
+              help="Model GA generations per punctuation.")
+@click.option("--initial-generations", default=200, show_default=True, type=int,
+              help="CGA generations on the model before the first test.")
+def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
+               model_spec, cga_population, model_population, model_generations, initial_generations,
+               port, observer_spec, placer, **sim) -> None:
+    """Co-evolve the model and the turn cycle with tests on the robot (PAL).
+
+    Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
+    robot from the start pose (45, 30, 90) for BUDGET gait cycles each; an observer reports the
+    path; the model GA corrects the model; the robot's operational turn cycle is replaced only
+    when a new one does better on the robot. A person places a real robot at each start pose
+    when asked (press Enter); the built-in emulator is placed through its tracker.
+
+    Writes OUT/log.jsonl (a line per punctuation), observations.jsonl (every observation, as
+    it happens), runs.jsonl (observed runs, for `pac-host diagnose`), model.json,
+    turn_cycle.json, coverage_path.png, learning_progress.png and state.json.
+
+    Examples: pac-host evolve --out out/evolve --generations 200;
+    pac-host evolve --port /dev/ttyUSB0 --observer tracker:192.168.1.5:7000 --out out/robot
+    """
+    if resume_dir is not None:
+        if out_dir is not None and Path(out_dir) != Path(resume_dir):
+            raise InputError("give either --out or --resume DIR (the run's own directory)")
+        root, cfg = resume_dir, load_config(resume_dir)
+        if given("generations"):  # a finished run may be carried on further
+            cfg = replace(cfg, generations=generations)
+            cfg.check()
+            save_config(root, cfg)
+        if port is None:  # the same emulated world as before, unless told otherwise
+            for name, value in cfg.robot.get("emulator", {}).items():
+                if not given(name):
+                    sim[name] = tuple(value) if isinstance(value, list) else value
+    elif out_dir is None:
+        raise InputError("--out DIR is required (or --resume DIR)")
+    else:
+        root = out_dir
+        cfg = EvolveConfig(seed=seed, method=method, model_fitness=model_fitness,
+                           generations=generations, interval=interval,
+                           model_generations=model_generations, cga_population=cga_population,
+                           model_population=model_population, budget=budget,
+                           initial_generations=initial_generations,
+                           model=_spec(model_spec), robot=_robot(port, observer_spec, sim))
+        cfg.check()
+    emu = emulator_options(sim, port)
+    with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:
+        click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
+
+        def show(rec: dict) -> None:
+            figs = "/".join(str(o["fitness"]) for o in rec["observed"])
+            click.echo(f"generation {rec['generation']}: tests {figs} on the robot (fitness); "
+                       f"model error {rec['model_error_before']} -> {rec['model_error_after']}; "
+                       f"operational {rec['operational']} fitness {rec['operational_fitness']}")
+
+        last = evolve(root, cfg, conn, resume=resume_dir is not None, on_punctuation=show)
+    if last:
+        click.echo(f"operational turn cycle {last['operational']} (fitness "
+                   f"{last['operational_fitness']} on the robot); files in {root}")
+
+
+def _spec(table: str) -> str:
+    """A table spec that still means the same file when resumed from elsewhere."""
+    return table if table in BUILTIN else str(Path(table).resolve())
+
+
+def _robot(port: str | None, observer: str | None, sim: dict) -> dict:
+    if port is not None:
+        return {"port": port, "observer": observer}
+    return {"emulator": {"sim_table": _spec(sim["sim_table"]),
+                         "sim_effects": list(sim["sim_effects"]), "sim_noise": sim["sim_noise"]}}
+
+
+def register(main: click.Group) -> None:
+    main.add_command(evolve_cmd)

@@ -1,0 +1,176 @@
+"""The noise floor: how much of the residual is noise that no effect can remove.
+
+Two kinds of noise. The tracker adds independent Gaussian noise to x, y (sigma_p, cm) and h
+(sigma_h, deg) of every observed pose (DESIGN.md section 3); a gait cycle's observed move is a
+difference of two observed poses, so that noise is shared by consecutive steps. A real robot
+also varies from step to step by itself (step noise: q_p cm on F and T, q_h deg on dH,
+independent per gait cycle), which accumulates along a run. Both are the floor: no effect of
+the library removes them, and the likelihood (:mod:`.likelihood`) must know both, or a robot's
+own step variability would look like unexplained structure.
+
+Method: segments of repeated identical steps, no model needed. Within a segment of one gait
+cycle repeated (its first step dropped when it follows a gait change), the true moves are the
+same under every table effect and ``transition``, so the observed moves minus the segment's
+mean are noise alone (plus a tiny part of a slow drift such as ``battery_sag``). The noise of a
+segment of L steps is MA(1) plus white: for dH, covariance ``sigma_h^2 T(1) + q_h^2 I`` with
+``T(rho)`` tridiagonal (2 on the diagonal, -rho beside it); for each of F and T,
+``sigma_p^2 T(cos dH) + (q_p^2 + sigma_h^2 |(F, T)|^2 / 2) I`` (the frame turns by dH between
+steps; heading noise enters the position through (T, -F) in radians, once per step). The
+centred lag-0 and lag-1 sums of squares have expectations linear in the two unknown
+variances (``tr(C Sigma)`` and ``tr(C U C Sigma)``, C the centring matrix, U the shift), summed
+over all segments and solved as a 2 x 2 system; a variance that comes out negative is set to 0
+and the other refitted. Heading first, then position (whose white part needs sigma_h).
+
+With fewer than :data:`MIN_REPEATS` usable steps the estimate is flagged unreliable; with no
+segments at all it falls back on the rms of the model's one-step residuals (an upper bound).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from pac_host.diagnose.residuals import Batch
+
+MIN_REPEATS = 40
+FLOOR = 1e-3  # smallest sigma used, so noise-free synthetic data still whitens
+STEP_Z = 1.0  # jackknife standard errors a step-noise variance must clear to be kept
+TO_RAD2 = (np.pi / 180.0) ** 2
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    pos_cm: float  # tracker noise on x and y of each pose
+    heading_deg: float  # tracker noise on h of each pose
+    method: str
+    n_used: int
+    reliable: bool
+    step_cm: float = 0.0  # the robot's own step-to-step variability of F and T
+    step_deg: float = 0.0  # ... and of dH
+
+    def to_json(self) -> dict:
+        return {"pos_cm": round(self.pos_cm, 4), "heading_deg": round(self.heading_deg, 4),
+                "step_cm": round(self.step_cm, 4), "step_deg": round(self.step_deg, 4),
+                "method": self.method, "n_used": self.n_used, "reliable": self.reliable}
+
+
+def segments(batch: Batch, min_len: int = 3) -> list[tuple[int, int, int]]:
+    """(run, first step, length) of maximal stretches of one gait cycle repeated, without the
+    first step after a gait change (which ``transition`` may blend), at least ``min_len``."""
+    out = []
+    for r, n in enumerate(batch.lengths):
+        ids = batch.ids[r, :n]
+        cuts = np.flatnonzero(np.diff(ids)) + 1
+        starts = np.concatenate([[0], cuts])
+        ends = np.concatenate([cuts, [n]])
+        for a, b in zip(starts, ends, strict=True):
+            a = a + 1 if a > 0 else a  # a gait change: drop the blended first step
+            if b - a >= min_len:
+                out.append((r, int(a), int(b - a)))
+    return out
+
+
+@lru_cache(maxsize=256)
+def _coefficients(n: int) -> tuple[float, float, float, float]:
+    """Traces for a segment of n steps: tr(C), tr(C S), tr(CUC), tr(CUC S), with C the
+    centring matrix, U the shift and S = U + U^T; T(rho) = 2 I - rho S."""
+    c = np.eye(n) - 1.0 / n
+    u = np.eye(n, k=1)
+    sh = u + u.T
+    cuc = c @ u @ c
+    return (float(np.trace(c)), float(np.trace(c @ sh)), float(np.trace(cuc)),
+            float(np.trace(cuc @ sh)))
+
+
+def _solve(s0: float, s1: float, a: np.ndarray) -> tuple[float, float]:
+    """Non-negative (x, y) with E[s0] = a00 x + a01 y, E[s1] = a10 x + a11 y."""
+    try:
+        x, y = np.linalg.solve(a, [s0, s1])
+    except np.linalg.LinAlgError:
+        x, y = -1.0, -1.0
+    if x >= 0 and y >= 0:
+        return float(x), float(y)
+    b = np.array([s0, s1])
+    fits = []
+    for col in (0, 1):  # one variance at zero: least squares for the other
+        v = max(float(a[:, col] @ b / (a[:, col] @ a[:, col])), 0.0)
+        fits.append((float(((a[:, col] * v - b) ** 2).sum()), col, v))
+    _, col, v = min(fits)
+    return (v, 0.0) if col == 0 else (0.0, v)
+
+
+def _moments(batch: Batch, segs: list) -> tuple[np.ndarray, ...]:
+    """Per segment: heading sums (S, 2) and design (S, 2, 2); position sums (S, 2), design
+    (S, 2, 2) and the heading-coupling coefficients (S, 2) of the white part."""
+    obs = batch.observed
+    k = len(segs)
+    sh, ah = np.zeros((k, 2)), np.zeros((k, 2, 2))
+    sp, ap, wp = np.zeros((k, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2))
+    for j, (r, i0, n) in enumerate(segs):
+        x = obs[r, i0 : i0 + n]
+        xc = x - x.mean(axis=0)
+        tr_c, tr_cs, tr_cuc, tr_cucs = _coefficients(n)
+        sh[j] = (xc[:, 2] ** 2).sum(), (xc[:-1, 2] * xc[1:, 2]).sum()
+        ah[j] = [[2 * tr_c - tr_cs, tr_c], [2 * tr_cuc - tr_cucs, tr_cuc]]
+        rho = float(np.cos(np.radians(x[:, 2].mean())))
+        ft2 = float((x[:, 0] ** 2 + x[:, 1] ** 2).mean()) * TO_RAD2
+        sp[j] = (xc[:, :2] ** 2).sum(), (xc[:-1, :2] * xc[1:, :2]).sum()
+        ap[j] = [[2 * (2 * tr_c - rho * tr_cs), 2 * tr_c],
+                 [2 * (2 * tr_cuc - rho * tr_cucs), 2 * tr_cuc]]
+        wp[j] = tr_c * ft2, tr_cuc * ft2
+    return sh, ah, sp, ap, wp
+
+
+def _fit(sh, ah, sp, ap, wp) -> tuple[float, float, float, float]:
+    """(var_h, q_h^2, var_p, q_p^2) from moment sums over a set of segments."""
+    var_h, qh = _solve(*sh.sum(axis=0), ah.sum(axis=0))
+    s = sp.sum(axis=0) - var_h * wp.sum(axis=0)
+    var_p, qp = _solve(s[0], s[1], ap.sum(axis=0))
+    return var_h, qh, var_p, qp
+
+
+def _solve_fixed(b: np.ndarray, a: np.ndarray, with_step: bool) -> tuple[float, float]:
+    """Both variances, or the tracker variance alone (step variance 0) by least squares."""
+    if with_step:
+        return _solve(b[0], b[1], a)
+    return max(float(a[:, 0] @ b / (a[:, 0] @ a[:, 0])), 0.0), 0.0
+
+
+def estimate_noise(batch: Batch, residuals: np.ndarray | None = None) -> NoiseFloor:
+    """Estimate the noise floor from repeated identical steps of the runs in ``batch``.
+
+    A step-noise variance is kept only when it exceeds :data:`STEP_Z` jackknife standard
+    errors (segments in up to 20 groups): telling two noise kinds apart costs precision, and
+    a step noise that is an artefact of few data would mask slow effects. ``residuals``
+    (R, N, 3), the model's one-step residuals, are only used by the fallback.
+    """
+    segs = segments(batch)
+    n_used = sum(n for _, _, n in segs)
+    if segs:
+        m = _moments(batch, segs)
+        var_h, qh, var_p, qp = _fit(*m)
+        groups = np.arange(len(segs)) % min(20, len(segs))
+        g = int(groups.max()) + 1
+        if g >= 3:
+            jack = np.array([_fit(*(a[groups != k] for a in m)) for k in range(g)])
+            se = np.sqrt((g - 1) / g * ((jack - jack.mean(axis=0)) ** 2).sum(axis=0))
+        else:
+            se = np.full(4, np.inf)
+        if qh <= STEP_Z * se[1] or qp <= STEP_Z * se[3]:
+            # refit with the step noise that is not clear set to zero
+            keep_h, keep_p = qh > STEP_Z * se[1], qp > STEP_Z * se[3]
+            var_h, qh = _solve_fixed(m[0].sum(axis=0), m[1].sum(axis=0), keep_h)
+            s = m[2].sum(axis=0) - var_h * m[4].sum(axis=0)
+            var_p, qp = _solve_fixed(s, m[3].sum(axis=0), keep_p)
+        return NoiseFloor(max(np.sqrt(var_p), FLOOR), max(np.sqrt(var_h), FLOOR),
+                          "repeated_identical_steps", n_used, n_used >= MIN_REPEATS,
+                          float(np.sqrt(qp)), float(np.sqrt(qh)))
+    if residuals is None:
+        raise ValueError("no repeated steps: residuals are needed for the fallback estimate")
+    flat = residuals[batch.mask]
+    pos = float(np.sqrt((flat[:, :2] ** 2).mean() / 2.0))  # each component: 2 sigma_p^2
+    head = float(np.sqrt((flat[:, 2] ** 2).mean() / 2.0))
+    return NoiseFloor(max(pos, FLOOR), max(head, FLOOR), "residual_rms_upper_bound",
+                      int(batch.mask.sum()), False)

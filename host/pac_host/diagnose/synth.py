@@ -1,0 +1,131 @@
+"""Observed runs made in a simulated world: for checking the diagnosis on known answers.
+
+The world moves the robot with the table and effects code of :mod:`pac_host.model` (the same
+code the emulator and the coverage simulator use) and a tracker adds independent Gaussian noise
+to every observed pose, start pose included. Turn cycles are of the kind the robot runs: a
+short CGA run on the measured table and the paper's PAL test perturbations of its results.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from pac_host import cga
+from pac_host.coverage import START_POSE, expand
+from pac_host.diagnose.runs import Run
+from pac_host.model.effects import Effect, step_moves
+from pac_host.model.kinematics import integrate
+from pac_host.model.table import measured_table
+
+
+def cga_turn_cycles(rng: np.random.Generator, n: int, generations: int = 15) -> np.ndarray:
+    """``n`` turn cycles (n, 9, 2) like those a PAL session tests on the robot.
+
+    A CGA population evolved briefly on the measured table, and for each of its members the
+    paper's two perturbations (+-1 on each repetition count; genes set to 50 repetitions with
+    probability 0.25), mixed and shuffled. Turn cycles that stand still are dropped.
+    """
+    pop = cga.random_population(rng, max(32, n))
+    pop, _ = cga.evolve(measured_table().rows, pop, generations, rng,
+                        cga.CGAConfig(population=len(pop)))
+    a = pop.copy()
+    nz = a[..., 1] > 0
+    a[nz, 1] = np.clip(a[nz, 1] + rng.choice([-1, 1], size=int(nz.sum())), 0, 63)
+    b = pop.copy()
+    b[rng.random(b.shape[:2]) < 0.25, 1] = 50
+    allc = np.concatenate([pop, a, b])
+    allc = allc[allc[..., 1].sum(axis=1) > 0]
+    return allc[rng.permutation(len(allc))[:n]]
+
+
+def world_runs(
+    rows: np.ndarray,
+    effects: Sequence[Effect],
+    turn_cycles: np.ndarray,
+    n_cycles: int,
+    rng: np.random.Generator,
+    pos_noise_cm: float = 0.5,
+    heading_noise_deg: float = 1.0,
+    runs_per_session: int = 10,
+    start_pose: Sequence[float] = START_POSE,
+    step_noise_cm: float = 0.0,
+    step_noise_deg: float = 0.0,
+) -> list[Run]:
+    """Run each turn cycle for ``n_cycles`` gait cycles in the world and observe it.
+
+    Runs follow each other in sessions of ``runs_per_session`` after a power-on, so
+    ``cycles_since_power_on`` grows within a session (what a battery effect acts on).
+    ``step_noise_*`` add the robot's own step-to-step variability (Gaussian on F, T and dH of
+    every gait cycle), on top of the tracker noise on every observed pose.
+    """
+    ids, _ = expand(np.asarray(turn_cycles), n_cycles)
+    m = len(ids)
+    n0 = (np.arange(m) % runs_per_session) * n_cycles
+    body, world = step_moves(rows, ids, effects, n0)
+    if step_noise_cm or step_noise_deg:
+        body = body + rng.normal(size=body.shape) * np.array(
+            [step_noise_cm, step_noise_cm, step_noise_deg])
+    start = np.broadcast_to(np.asarray(start_pose, dtype=np.float64), (m, 3))
+    poses = integrate(start, body, world)
+    sd = np.array([pos_noise_cm, pos_noise_cm, heading_noise_deg])
+    obs = poses + rng.normal(size=poses.shape) * sd
+    return [Run(f"run{k:03d}", obs[k, 0], ids[k], obs[k, 1:], int(n0[k])) for k in range(m)]
+
+
+# Moderate magnitudes of each effect for blind cases: (sampler, stated range).
+MODERATE = {
+    "turn_shift": (lambda r: {"k": int(r.choice([-2, -1, 1, 2]))}, "k in {-2, -1, 1, 2}"),
+    "turn_scale": (lambda r: {"c": 1 + r.choice([-1, 1]) * r.uniform(0.08, 0.2)},
+                   "c in 1 +- [0.08, 0.2]"),
+    "stride_scale": (lambda r: {"a": 1 + r.choice([-1, 1]) * r.uniform(0.05, 0.12)},
+                     "a in 1 +- [0.05, 0.12]"),
+    "yaw_bias": (lambda r: {"delta": r.choice([-1, 1]) * r.uniform(0.3, 1.0)},
+                 "delta in +-[0.3, 1.0] deg/cycle"),
+    "lateral_slip": (lambda r: {"gamma": r.choice([-1, 1]) * r.uniform(0.03, 0.08)},
+                     "gamma in +-[0.03, 0.08] cm/deg"),
+    "transition": (lambda r: {"alpha": r.uniform(0.2, 0.6)}, "alpha in [0.2, 0.6]"),
+    "battery_sag": (lambda r: {"beta": r.uniform(1e-4, 4e-4)}, "beta in [1e-4, 4e-4] /cycle"),
+    "floor_slope": (lambda r: {"s": r.uniform(0.2, 0.6), "theta": r.uniform(0, 360)},
+                    "s in [0.2, 0.6] cm/cycle, theta in [0, 360)"),
+}
+
+
+def moderate_effect(name: str, rng: np.random.Generator) -> Effect:
+    """An effect with parameters drawn from its :data:`MODERATE` range."""
+    return Effect(name, MODERATE[name][0](rng))
+
+
+def perturbed_rows(rows: np.ndarray, rng: np.random.Generator, pos_cm: float = 0.3,
+                   heading_deg: float = 0.5) -> np.ndarray:
+    """A table near ``rows``: every entry moved by Gaussian noise (a re-measured robot)."""
+    return rows + rng.normal(size=rows.shape) * np.array([pos_cm, pos_cm, heading_deg])
+
+
+def blind_case(
+    rng: np.random.Generator,
+    effects: Sequence[Effect],
+    n_runs: int = 40,
+    n_cycles: int = 60,
+    pos_noise_cm: float = 0.5,
+    heading_noise_deg: float = 1.0,
+    perturb_table: bool = False,
+    holdout_fraction: float = 0.3,
+    step_noise: tuple[float, float] = (0.0, 0.0),
+) -> tuple[np.ndarray, list[Run], list[Run]]:
+    """A true table, runs in a world with ``effects``, split into fitting and held-out runs.
+
+    The table the diagnosis is given is the true table without the effects; returns
+    (rows, fitting runs, held-out runs).
+    """
+    from pac_host.diagnose.pipeline import split_runs
+
+    rows = measured_table().rows
+    if perturb_table:
+        rows = perturbed_rows(rows, rng)
+    cycles = cga_turn_cycles(rng, n_runs)
+    runs = world_runs(rows, effects, cycles, n_cycles, rng, pos_noise_cm, heading_noise_deg,
+                      step_noise_cm=step_noise[0], step_noise_deg=step_noise[1])
+    fit, hold = split_runs(runs, holdout_fraction, rng)
+    return rows, fit, hold

@@ -1,0 +1,292 @@
+"""`pac-host evolve`: PAL (DESIGN.md 2.5) with a robot behind the serial link.
+
+Everything a run produces lives in one output directory:
+
+- ``config.json``: the run's settings (``--resume`` reads them back, so a resumed run is the
+  same run);
+- ``observations.jsonl``: every observation, appended and flushed before it is used (start
+  poses, the pose after each gait cycle, manual counts), including those of a run cut short;
+- ``log.jsonl``: one line per punctuation (tests, observed and predicted figures, run ids,
+  model fitness before and after the model GA, the best model, the operational solution);
+- ``runs.jsonl``: the observed runs in the format of DESIGN.md 4 (input to diagnosis);
+- ``model.json`` (pac-gait-table/1) and ``turn_cycle.json``: the current best model and the
+  operational solution;
+- ``coverage_path.png`` and ``learning_progress.png``;
+- ``state.json``: the PAL state and generator after the last complete punctuation.
+
+Results depend only on the seed (and what the robot does): the CGA and model GA draw from one
+seeded generator saved in ``state.json``, and each run's tracker noise in the emulator is seeded
+by the run's identity.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from pac_host import pal
+from pac_host.coverage import START_POSE, detect_blocks, format_turn_cycle
+from pac_host.errors import InputError, PacError
+from pac_host.experiment import ExperimentConfig, initial_population
+from pac_host.model.table import GaitTable, resolve_table, save_table
+from pac_host.robot.connect import Connection
+from pac_host.robot.linked import AppendLog, LinkedRobot
+
+CONFIG_FORMAT = "pac-evolve-config/1"
+
+
+@dataclass(frozen=True)
+class EvolveConfig:
+    """What defines a run (stored in config.json; resume reads it back)."""
+
+    seed: int = 0
+    method: str = "partial"
+    model_fitness: str = "coverage"
+    generations: int = 1000
+    interval: int = 40
+    model_generations: int = 40
+    cga_population: int = 128
+    model_population: int = 64
+    budget: int = 200
+    initial_generations: int = 200
+    model: str = "measured"
+    robot: dict = field(default_factory=dict)  # what played the robot (a resume reuses it)
+
+    def check(self) -> None:
+        if self.method not in ("partial", "full"):
+            raise InputError(f"--method must be partial or full, got {self.method!r}")
+        if self.model_fitness not in ("coverage", "steps"):
+            raise InputError(f"--model-fitness must be coverage or steps, "
+                             f"got {self.model_fitness!r}")
+        for name in ("generations", "initial_generations", "model_generations"):
+            if getattr(self, name) < 0:
+                raise InputError(f"--{name.replace('_', '-')} must be >= 0")
+        for name in ("interval", "cga_population", "model_population", "budget"):
+            if getattr(self, name) < 1:
+                raise InputError(f"--{name.replace('_', '-')} must be >= 1")
+        if self.cga_population < 4 or self.model_population < 4:
+            raise InputError("populations must hold at least 4")
+
+    def pal(self) -> pal.PALConfig:
+        return pal.PALConfig(
+            method=self.method, model_fitness=self.model_fitness,
+            generations=self.generations, interval=self.interval,
+            model_generations=self.model_generations, cga_population=self.cga_population,
+            model_population=self.model_population, budget=self.budget)
+
+
+class RunInterrupted(PacError):
+    """The robot or observer failed mid-punctuation; what was observed is in the log."""
+
+
+class EvolveDir:
+    """The files of one evolve run."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self.config = root / "config.json"
+        self.state = root / "state.json"
+        self.log = root / "log.jsonl"
+        self.runs = root / "runs.jsonl"
+        self.observations = root / "observations.jsonl"
+        self.model = root / "model.json"
+        self.turn_cycle = root / "turn_cycle.json"
+        self.path_png = root / "coverage_path.png"
+        self.progress_png = root / "learning_progress.png"
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _read_jsonl(path: Path) -> list[dict]:
+    if not path.exists():
+        return []
+    out = []
+    for n, line in enumerate(path.read_text().splitlines(), 1):
+        if line.strip():
+            try:
+                out.append(json.loads(line))
+            except json.JSONDecodeError:
+                raise InputError(f"{path}:{n}: not a JSON line; cannot resume") from None
+    return out
+
+
+def _run_generation(run_id: str) -> int:
+    return int(run_id.split("-")[0].removeprefix("g"))
+
+
+def error_on_used(model: np.ndarray, truth: np.ndarray, used: list[int]) -> dict:
+    """Mean |model - truth| per component over the gait ids the tests used."""
+    e = np.abs(np.asarray(model)[used] - truth[used]).mean(axis=0)
+    return {"F": round(float(e[0]), 4), "T": round(float(e[1]), 4), "dH": round(float(e[2]), 4)}
+
+
+def _start(d: EvolveDir, cfg: EvolveConfig) -> tuple[pal.PALState, np.random.Generator, bool]:
+    """A fresh state; writes config.json. The bool says no punctuation is done yet."""
+    if d.state.exists():  # a complete punctuation is there: never overwrite it by accident
+        raise InputError(f"{d.root} holds an evolve run: use --resume {d.root} to continue it, "
+                         "or another --out")
+    d.root.mkdir(parents=True, exist_ok=True)
+    for p in (d.log, d.runs, d.state):
+        p.unlink(missing_ok=True)
+    d.runs.touch()  # exists even when the observer gives counts, not paths
+    save_config(d.root, cfg)
+    model = resolve_table(cfg.model)
+    pcfg = cfg.pal()
+    init = initial_population(model, 0, ExperimentConfig(
+        base_seed=cfg.seed, initial_generations=cfg.initial_generations, pal=pcfg))
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 1]))
+    return pal.initial_state(model, rng, pcfg, init), rng, True
+
+
+def save_config(root: Path, cfg: EvolveConfig) -> None:
+    _write_atomic(EvolveDir(root).config,
+                  json.dumps({"format": CONFIG_FORMAT, **asdict(cfg)}, indent=1) + "\n")
+
+
+def load_config(root: Path) -> EvolveConfig:
+    d = EvolveDir(root)
+    try:
+        doc = json.loads(d.config.read_text())
+    except FileNotFoundError:
+        raise InputError(f"--resume {root}: no config.json there (not an evolve run)") from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"{d.config}: not JSON ({e})") from None
+    if doc.get("format") != CONFIG_FORMAT:
+        raise InputError(f"{d.config}: not a {CONFIG_FORMAT} file")
+    names = {f.name for f in fields(EvolveConfig)}
+    return EvolveConfig(**{k: v for k, v in doc.items() if k in names})
+
+
+def _resume(d: EvolveDir) -> tuple[pal.PALState, np.random.Generator, bool]:
+    """The state after the last complete punctuation; later lines of log and runs dropped."""
+    if not d.state.exists():
+        raise InputError(f"--resume {d.root}: no complete punctuation yet (no state.json); "
+                         "start it again without --resume")
+    try:
+        state, rng = pal.state_from_json(json.loads(d.state.read_text()))
+    except json.JSONDecodeError as e:
+        raise InputError(f"{d.state}: not JSON ({e})") from None
+    g = state.generation
+    log = [r for r in _read_jsonl(d.log) if r["generation"] <= g]
+    runs = [r for r in _read_jsonl(d.runs) if _run_generation(r["run_id"]) <= g]
+    _write_atomic(d.log, "".join(json.dumps(r) + "\n" for r in log))
+    _write_atomic(d.runs, "".join(json.dumps(r) + "\n" for r in runs))
+    AppendLog(d.observations)({"type": "resume", "generation": g, "time": time.time()})
+    return state, rng, False
+
+
+def evolve(
+    root: Path,
+    cfg: EvolveConfig,
+    conn: Connection,
+    resume: bool = False,
+    on_punctuation: Callable[[dict], None] | None = None,
+) -> dict:
+    """Run (or resume) PAL on the connected robot; returns the last punctuation's record."""
+    cfg.check()
+    d = EvolveDir(root)
+    state, rng, fresh = _resume(d) if resume else _start(d, cfg)
+    pcfg = cfg.pal()
+    obs_log = AppendLog(d.observations)
+    obs_log({"type": "session", "robot": conn.description, "observer": conn.observer.name,
+             "time": time.time()})
+    robot = LinkedRobot(conn.robot, conn.observer, conn.placer, cfg.budget, obs_log, cfg.seed,
+                        START_POSE)
+    records = _read_jsonl(d.log)
+    model_name = resolve_table(cfg.model).name
+    cga_s = 0.0
+    if not fresh:
+        if state.generation >= cfg.generations:
+            return records[-1] if records else {}
+        state, cga_s = _advance(state, rng, cfg)
+    while True:
+        t0 = time.perf_counter()
+        robot.generation = state.generation
+        model_before = state.models[0].copy()
+        timer = _TimedRobot(robot)
+        try:
+            state, rec = pal.punctuate(state, timer, rng, pcfg)
+        except PacError as e:
+            raise RunInterrupted(
+                f"run {robot.current_run}: {e}. Everything observed is in {d.observations}; "
+                f"`pac-host evolve --resume {d.root}` continues from the last complete "
+                "punctuation") from None
+        rec["run_ids"] = [f"g{rec['generation']}-t{i}" for i in range(len(rec["tests"]))]
+        rec["model"] = state.models[0].round(6).tolist()
+        if conn.truth is not None:
+            used = rec["used_gait_ids"]
+            rec["true_error_on_used"] = {"before": error_on_used(model_before, conn.truth, used),
+                                         "after": error_on_used(state.models[0], conn.truth, used)}
+        rec["timing"] = {"robot_s": round(timer.seconds, 4), "cga_s": round(cga_s, 4),
+                         "model_ga_s": round(time.perf_counter() - t0 - timer.seconds, 4)}
+        _persist(d, state, rng, rec, robot, timer, model_name, records)
+        if on_punctuation is not None:
+            on_punctuation(rec)
+        if state.generation >= cfg.generations:
+            return rec
+        state, cga_s = _advance(state, rng, cfg)
+
+
+def _advance(state: pal.PALState, rng: np.random.Generator, cfg: EvolveConfig
+             ) -> tuple[pal.PALState, float]:
+    """CGA generations up to the next punctuation; returns the state and the seconds taken."""
+    t0 = time.perf_counter()
+    step = min(cfg.interval, cfg.generations - state.generation)
+    state, _ = pal.advance_cga(state, step, rng, cfg.pal())
+    return state, time.perf_counter() - t0
+
+
+class _TimedRobot:
+    """Counts the wall time spent on the robot (placing, loading, walking, observing)."""
+
+    def __init__(self, robot: LinkedRobot) -> None:
+        self.robot = robot
+        self.seconds = 0.0
+        self.results: list[pal.TestResult] = []
+
+    def run_tests(self, tests: np.ndarray) -> list[pal.TestResult]:
+        t0 = time.perf_counter()
+        try:
+            self.results = self.robot.run_tests(tests)
+            return self.results
+        finally:
+            self.seconds += time.perf_counter() - t0
+
+
+def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: dict,
+             robot: LinkedRobot, timer: _TimedRobot, model_name: str, records: list[dict]
+             ) -> None:
+    """Write a complete punctuation: runs, log line, model, turn cycle, plots, then the state
+    (last, atomically: a crash before it makes resume redo this punctuation)."""
+    from pac_host.plots import coverage_path, learning_progress
+
+    runs_log, log = AppendLog(d.runs), AppendLog(d.log)
+    for r in robot.runs:
+        runs_log(r)
+    log(rec)
+    records.append(rec)
+    table = GaitTable(state.models[0], state.model_effects,
+                      f"{model_name} evolved to generation {state.generation}")
+    save_table(table, d.model)
+    _write_atomic(d.turn_cycle, json.dumps({
+        "format": "pac-turn-cycle/1", "turn_cycle": format_turn_cycle(state.operational),
+        "genes": state.operational.tolist(), "fitness_on_robot": state.operational_fitness,
+        "generation": state.generation}, indent=1) + "\n")
+    best = timer.results[0] if timer.results else None
+    if best is not None and best.poses is not None:
+        coverage_path(best.poses, detect_blocks(best.poses), d.path_png,
+                      f"generation {state.generation}, best turn cycle on the robot:\n"
+                      f"{rec['tests'][0]}",
+                      best.figures())
+    learning_progress(records, d.progress_png, "PAL on the robot")
+    _write_atomic(d.state, json.dumps(pal.state_to_json(state, rng)) + "\n")

@@ -1,0 +1,123 @@
+"""Connect to a robot, its observer and its placer: a real one on a port, or the built-in
+emulator (``pac-sim`` in this process, on a real pseudo-terminal, with its tracker feed).
+
+Without a port, the emulator plays the robot and its tracker is the observer; the robot is
+placed at each start pose through the tracker socket, as an operator would place a real one.
+With a port, the observer is whatever ``--observer`` names and an operator places the robot.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pac_host.errors import InputError
+from pac_host.model import Effect, GaitTable
+from pac_host.model.effects import effective_rows
+from pac_host.robot.api import EVENT_TIMEOUT_S, StampRobot
+from pac_host.robot.observers import Ask, Observer, open_observer
+from pac_host.robot.placement import OperatorPlacer, Placer, TrackerPlacer
+from pac_protocol.link import READY_TIMEOUT_S
+
+
+@dataclass(frozen=True)
+class EmulatorOptions:
+    """The built-in emulator's world and line (see ``pac-sim --help`` for each)."""
+
+    table: GaitTable
+    effects: tuple[Effect, ...] = ()
+    noise: tuple[float, float] = (0.5, 1.0)
+    realtime: float = 0.0
+    seed: int = 0
+    drop_prob: float = 0.0
+    corrupt_prob: float = 0.0
+    mute_after: int | None = None
+
+
+@dataclass
+class Connection:
+    robot: StampRobot
+    observer: Observer
+    placer: Placer
+    description: str
+    truth: np.ndarray | None = None  # the emulator's true rows (effects applied), if known
+    extra: dict = field(default_factory=dict)
+
+
+@contextlib.contextmanager
+def connect(
+    port: str | None,
+    observer_spec: str | None,
+    emulator: EmulatorOptions | None,
+    ask: Ask | None = None,
+    confirm: Callable[[str], None] | None = None,
+    manual_mode: str = "figures",
+    placer: str = "operator",
+) -> Iterator[Connection]:
+    """A said-HELLO robot with its observer and placer; everything is closed on exit.
+
+    With a port, ``placer`` is ``operator`` (a person, through ``confirm``) or ``tracker``
+    (PLACE lines to the ``tracker:HOST:PORT`` observer: a ``pac-sim`` process's world)."""
+    with contextlib.ExitStack() as stack:
+        if port is None:
+            if emulator is None:
+                raise InputError("no --port and no emulator options")
+            yield _emulated(stack, observer_spec, emulator, ask, manual_mode)
+            return
+        if observer_spec is None:
+            raise InputError("--observer is needed with --port: tracker:HOST:PORT, pipe:PATH "
+                             "or manual")
+        observer = open_observer(observer_spec, ask, manual_mode)
+        stack.callback(observer.close)
+        place: Placer
+        if placer == "tracker":
+            if not observer_spec.startswith("tracker:"):
+                raise InputError("--placer tracker needs --observer tracker:HOST:PORT")
+            host, _, tport = observer_spec.removeprefix("tracker:").rpartition(":")
+            place = TrackerPlacer(host, int(tport))
+            stack.callback(place.close)
+        elif confirm is None:
+            raise InputError("a real robot needs an operator to place it at each start pose")
+        else:
+            place = OperatorPlacer(confirm)
+        robot = StampRobot.open(port)
+        stack.callback(robot.close)
+        yield Connection(robot, observer, place, f"serial port {port}")
+
+
+def _emulated(stack: contextlib.ExitStack, observer_spec: str | None, o: EmulatorOptions,
+              ask: Ask | None, manual_mode: str) -> Connection:
+    from pac_sim.line import Faults
+    from pac_sim.runner import SimConfig, SimStamp
+
+    if o.realtime < 0:
+        raise InputError(f"--sim-realtime must be >= 0, got {o.realtime}")
+    if min(o.noise) < 0:
+        raise InputError(f"--sim-noise must be >= 0, got {o.noise}")
+    for name, p in (("--drop-prob", o.drop_prob), ("--corrupt-prob", o.corrupt_prob)):
+        if not 0 <= p <= 1:
+            raise InputError(f"{name} must be in [0, 1], got {p}")
+    sim = SimStamp(SimConfig(
+        factor=o.realtime, faults=Faults(o.drop_prob, o.corrupt_prob), seed=o.seed,
+        table=o.table, effects=o.effects, tracker_noise=o.noise, tracker=("127.0.0.1", 0),
+        mute_after=o.mute_after,
+    ))
+    stack.callback(sim.close)
+    host, tport = sim.tracker.address
+    placer = TrackerPlacer(host, tport)
+    stack.callback(placer.close)
+    observer = open_observer(observer_spec or f"tracker:{host}:{tport}", ask, manual_mode)
+    stack.callback(observer.close)
+    sim.start()
+    # at real-time factor 0 the emulated Stamp answers within milliseconds: fail fast
+    scale = max(o.realtime, 0.25)
+    robot = StampRobot.open(sim.path, ready_timeout=READY_TIMEOUT_S * scale,
+                            event_timeout=EVENT_TIMEOUT_S * scale)
+    stack.callback(robot.close)
+    truth = effective_rows(o.table.rows, tuple(o.table.effects) + tuple(o.effects))
+    desc = (f"built-in emulator on {sim.path} (true table {o.table.name}, tracker "
+            f"{host}:{tport}, noise {o.noise[0]:g} cm / {o.noise[1]:g} deg)")
+    return Connection(robot, observer, placer, desc, truth, {"sim": sim})

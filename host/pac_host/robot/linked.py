@@ -1,0 +1,131 @@
+"""The robot side of PAL over the serial link: :class:`LinkedRobot` implements ``pal.Robot``.
+
+For each tested turn cycle: the robot is put at the start pose (by an operator, or by the
+emulator's world), the turn cycle is loaded, run for the budget, and observed; the figures come
+from the observed path (:func:`pac_host.coverage.coverage_of_poses`) or from the operator's
+count. Every observation is appended to the run's log before it is used, so a robot that stops
+answering mid-run leaves a log holding everything seen up to then.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from pac_host.coverage import START_POSE, coverage_of_poses, expand
+from pac_host.errors import InputError, PacError
+from pac_host.pal import TestResult
+from pac_host.robot.api import StampRobot
+from pac_host.robot.observers import Observation, Observer, ObserverError
+from pac_host.robot.placement import Placer
+
+
+class AppendLog:
+    """A JSON Lines file written one whole line at a time, flushed at once."""
+
+    def __init__(self, path: Path | None) -> None:
+        self.path = path
+
+    def __call__(self, doc: dict) -> None:
+        if self.path is None:
+            return
+        try:
+            with open(self.path, "a") as f:
+                f.write(json.dumps(doc) + "\n")
+                f.flush()
+        except OSError as e:
+            raise InputError(f"cannot write {self.path}: {e.strerror}") from None
+
+
+def run_seed(base_seed: int, *key: int) -> int:
+    """A run's noise seed from the experiment's seed and the run's identity."""
+    return int(np.random.SeedSequence([base_seed, *key]).generate_state(1)[0])
+
+
+def observed_run(run_id: str, start: Sequence[float], gaits: Sequence[int],
+                 poses: np.ndarray, n0: int) -> dict:
+    """One line of the observed-runs file (DESIGN.md section 4)."""
+    return {"run_id": run_id, "start_pose": [float(v) for v in start],
+            "gait_cycles": [int(g) for g in gaits],
+            "poses": [[float(v) for v in p] for p in poses],
+            "cycles_since_power_on": int(n0)}
+
+
+class LinkedRobot:
+    """Runs PAL's tests on a robot behind a :class:`StampRobot`, with a placer and an observer.
+
+    ``label`` names the runs of the next :meth:`run_tests` call (``g40-t1``: generation 40,
+    test 1); ``runs`` holds the observed runs of the last call (DESIGN.md 4 format).
+    """
+
+    def __init__(self, robot: StampRobot, observer: Observer, placer: Placer,
+                 budget: int, log: AppendLog, seed: int = 0,
+                 start_pose: Sequence[float] = START_POSE) -> None:
+        self.robot = robot
+        self.observer = observer
+        self.placer = placer
+        self.budget = budget
+        self.log = log
+        self.seed = seed
+        self.start_pose = tuple(float(v) for v in start_pose)
+        self.generation = 0
+        self.runs: list[dict] = []
+        self.current_run = ""  # the run in progress (named in errors)
+
+    def run_tests(self, tests: np.ndarray) -> list[TestResult]:
+        self.runs = []
+        return [self.run_one(f"g{self.generation}-t{i}", np.asarray(t), (self.generation, i))
+                for i, t in enumerate(tests)]
+
+    def run_one(self, run_id: str, genes: np.ndarray, key: tuple[int, ...]) -> TestResult:
+        """Place, load, run the budget, observe, score one turn cycle (9, 2)."""
+        self.current_run = run_id
+        genes = np.asarray(genes, dtype=np.int64).reshape(-1, 2)
+        stored = [(int(g), int(r)) for g, r in genes if r > 0]
+        seen = self.placer.place(run_id, self.start_pose, run_seed(self.seed, *key))
+        start = tuple(seen) if seen is not None else self.start_pose
+        self.log({"type": "start", "run_id": run_id, "turn_cycle": stored,
+                  "nominal_start": list(self.start_pose), "observed_start": seen})
+        if not stored or self.budget == 0:  # nothing to walk: the robot stays where it is
+            poses = np.tile(np.asarray(start), (self.budget, 1))
+            return self._result(run_id, start, [], poses, 0, Observation(poses=poses))
+        self.robot.load(stored)
+        n0 = self.robot.status().power_on
+        self.observer.begin(run_id, n0, self.log)
+        report = self.robot.run(self.budget, lambda c: self.observer.on_cycle(c.power_on))
+        obs = self.observer.finish(report.done)
+        self.log({"type": "done", "run_id": run_id, "cycles": report.done,
+                  "completed": report.completed, "lost_reports": report.lost_reports,
+                  "power_on_before": report.power_on_before})
+        if not report.completed:
+            raise PacError(f"run {run_id}: the robot stopped after {report.done} of "
+                           f"{self.budget} gait cycles (STOP from elsewhere?)")
+        gaits = expand(genes[None], self.budget)[0][0]
+        self._check_reports(run_id, gaits, report.reports)
+        return self._result(run_id, start, gaits, obs.poses, report.power_on_before, obs)
+
+    def _check_reports(self, run_id: str, gaits: np.ndarray, reports: list) -> None:
+        for c in reports:
+            if not 1 <= c.done <= len(gaits) or gaits[c.done - 1] != c.gait:
+                raise PacError(f"run {run_id}: the robot walked gait {c.gait} as gait cycle "
+                               f"{c.done}; the loaded turn cycle says otherwise (firmware?)")
+
+    def _result(self, run_id: str, start: Sequence[float], gaits: Sequence[int],
+                poses: np.ndarray | None, n0: int, obs: Observation) -> TestResult:
+        if obs.figures is not None:
+            f = obs.figures
+            return TestResult(f["blocks_covered"], f["blocks_covered_once"], f["fitness"],
+                              f["repeat_visits"])
+        if poses is None or len(poses) != self.budget:
+            got = 0 if poses is None else len(poses)
+            raise ObserverError(f"observer {self.observer.name}: {got} poses for run {run_id},"
+                                f" expected {self.budget}")
+        if len(gaits):
+            self.runs.append(observed_run(run_id, start, gaits, poses, n0))
+        path = np.vstack([np.asarray(start, dtype=np.float64)[None], poses])
+        cov = coverage_of_poses(path)
+        return TestResult(int(cov.blocks_covered), int(cov.blocks_covered_once),
+                          int(cov.fitness), int(cov.repeat_visits), path)

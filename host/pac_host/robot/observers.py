@@ -1,0 +1,307 @@
+"""Observers: where the robot really is (the paper's "global observation").
+
+An observer follows one run at a time: :meth:`Observer.begin` before it, :meth:`on_cycle` when
+the robot reports a finished gait cycle, :meth:`finish` when it has stopped. Every observation is
+handed to the ``record`` callback (the run's log, which appends and flushes it) before it is
+returned or used. Three kinds:
+
+- :class:`TrackerObserver`: a stream of ``POSE seq gait power_on x y h`` lines (the emulator's
+  tracker feed, or an overhead camera) from a TCP socket or a named pipe; gives the pose after
+  every gait cycle.
+- :class:`ManualObserver`: the operator types numbers at a prompt the caller provides; either
+  the coverage figures of a run or the final pose. A reply that is not a number is asked again.
+
+A malformed line, a closed stream or silence raises :class:`ObserverError` naming the observer;
+nothing is ever filled in with zeros.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import socket
+import stat
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from pac_host.errors import InputError, PacError
+
+TRACKER_TIMEOUT_S = 3.0  # a camera's pose for a finished gait cycle should come well within this
+POWER_ON_MOD = 65536  # the Stamp's power-on count wraps at 16 bits
+
+Record = Callable[[dict], None]
+Ask = Callable[[str], str]
+
+
+class ObserverError(PacError):
+    """An observer gave no usable observation (malformed line, closed stream, silence)."""
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What an observer saw of one run: the poses after each gait cycle (n, 3), or the coverage
+    figures the operator counted, or only the final pose."""
+
+    poses: np.ndarray | None = None
+    figures: dict | None = None
+    final_pose: tuple[float, float, float] | None = None
+
+
+class Observer(Protocol):
+    name: str
+
+    def begin(self, run_id: str, power_on_before: int, record: Record) -> None: ...
+    def on_cycle(self, power_on: int) -> None: ...
+    def finish(self, cycles: int) -> Observation: ...
+    def close(self) -> None: ...
+
+
+# ---- tracker streams -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PoseLine:
+    seq: int
+    gait: int
+    power_on: int
+    pose: tuple[float, float, float]
+
+
+def parse_pose_line(line: str) -> PoseLine:
+    """``POSE seq gait power_on x y h`` (simulator/README.md); ValueError otherwise."""
+    parts = line.split()
+    if len(parts) != 7 or parts[0] != "POSE":
+        raise ValueError("expected 'POSE seq gait power_on x y h'")
+    pose = (float(parts[4]), float(parts[5]), float(parts[6]))
+    if not all(np.isfinite(pose)):
+        raise ValueError("pose is not finite")
+    return PoseLine(int(parts[1]), int(parts[2]), int(parts[3]), pose)
+
+
+class LineSource:
+    """Text lines from a file descriptor with a timeout (a socket or a FIFO)."""
+
+    def __init__(self, fd: int, name: str, closer: Callable[[], None],
+                 writer: Callable[[bytes], object] | None = None) -> None:
+        self.fd = fd
+        self.name = name
+        self._close = closer
+        self._write = writer
+        self._buf = b""
+        self.eof = False
+
+    def readline(self, timeout: float) -> str | None:
+        """The next line, or None if none completes within ``timeout``; raises on EOF."""
+        deadline = time.monotonic() + timeout
+        while b"\n" not in self._buf:
+            rem = deadline - time.monotonic()
+            if rem <= 0:
+                return None
+            r, _, _ = select.select([self.fd], [], [], rem)
+            if not r:
+                return None
+            try:
+                chunk = os.read(self.fd, 65536)
+            except BlockingIOError:
+                continue
+            except OSError as e:
+                raise ObserverError(f"observer {self.name}: read failed: {e.strerror}") from None
+            if not chunk:
+                self.eof = True
+                raise ObserverError(f"observer {self.name}: the stream closed")
+            self._buf += chunk
+        raw, self._buf = self._buf.split(b"\n", 1)
+        return raw.decode(errors="replace").rstrip("\r")
+
+    def write_line(self, text: str) -> None:
+        """Send a line back (TCP sources only)."""
+        if self._write is None:
+            raise ObserverError(f"observer {self.name}: this stream is read-only")
+        try:
+            self._write((text + "\n").encode())
+        except OSError as e:
+            raise ObserverError(f"observer {self.name}: write failed: {e.strerror}") from None
+
+    def close(self) -> None:
+        self._close()
+
+
+def open_tcp(host: str, port: int, name: str, timeout: float = 5.0) -> LineSource:
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except OSError as e:
+        raise InputError(f"observer {name}: cannot connect to {host}:{port}: "
+                         f"{e.strerror or e}") from None
+    sock.setblocking(False)
+    return LineSource(sock.fileno(), name, sock.close, sock.sendall)
+
+
+def open_pipe(path: str, name: str) -> LineSource:
+    """A named pipe (or any readable file) a camera program writes lines into. A FIFO is
+    opened read-write so it neither blocks until a writer comes nor reads EOF when the writer
+    restarts (Linux semantics)."""
+    try:
+        mode = os.stat(path).st_mode
+        flags = os.O_RDWR if stat.S_ISFIFO(mode) else os.O_RDONLY
+        fd = os.open(path, flags | os.O_NONBLOCK)
+    except OSError as e:
+        raise InputError(f"observer {name}: cannot open {path}: {e.strerror}") from None
+    return LineSource(fd, name, lambda: os.close(fd))
+
+
+class TrackerObserver:
+    """Poses from a tracker stream, matched to gait cycles by the power-on count each line
+    carries (so a CYCLE report lost on the serial line loses no pose)."""
+
+    def __init__(self, source: LineSource, timeout: float = TRACKER_TIMEOUT_S) -> None:
+        self.source = source
+        self.name = source.name
+        self.timeout = timeout
+        self._n0 = 0
+        self._poses: list[tuple[float, float, float]] = []
+        self._record: Record = lambda _: None
+        self._run_id = ""
+
+    def begin(self, run_id: str, power_on_before: int, record: Record) -> None:
+        self._run_id, self._n0, self._record = run_id, power_on_before, record
+        self._poses = []
+
+    def on_cycle(self, power_on: int) -> None:
+        self._take_until((power_on - self._n0) % POWER_ON_MOD)
+
+    def finish(self, cycles: int) -> Observation:
+        self._take_until(cycles)
+        return Observation(poses=np.array(self._poses[:cycles], dtype=np.float64).reshape(-1, 3))
+
+    def _take_until(self, k: int) -> None:
+        """Read lines until the pose after gait cycle ``k`` of this run is in hand."""
+        while len(self._poses) < k:
+            want = len(self._poses) + 1
+            line = self.source.readline(self.timeout)
+            if line is None:
+                raise ObserverError(
+                    f"observer {self.name}: no pose for gait cycle {want} of run {self._run_id} "
+                    f"within {self.timeout:g} s (is the tracker running and seeing the robot?)"
+                )
+            if not line.strip() or line.startswith("#"):
+                continue
+            try:
+                p = parse_pose_line(line)
+            except ValueError as e:
+                raise ObserverError(
+                    f"observer {self.name}: malformed line {line.strip()[:80]!r} ({e})"
+                ) from None
+            if p.gait < 0:
+                continue  # a snapshot of the robot at rest, not a gait cycle
+            i = (p.power_on - self._n0) % POWER_ON_MOD
+            if i == 0 or i > POWER_ON_MOD // 2:
+                continue  # a gait cycle from before this run
+            if i != want:
+                raise ObserverError(
+                    f"observer {self.name}: pose for gait cycle {i} of run {self._run_id} came "
+                    f"where gait cycle {want} was expected (the tracker skipped a line)"
+                )
+            self._record({"type": "pose", "run_id": self._run_id, "cycle": i,
+                          "gait": p.gait, "power_on": p.power_on, "pose": list(p.pose)})
+            self._poses.append(p.pose)
+
+    def close(self) -> None:
+        self.source.close()
+
+
+# ---- manual entry ----------------------------------------------------------------------------
+
+
+def ask_numbers(ask: Ask, prompt: str, names: tuple[str, ...], integer: bool) -> list[float]:
+    """Ask until the reply is ``len(names)`` numbers (integers >= 0 if ``integer``)."""
+    hint = ""
+    while True:
+        reply = ask(hint + prompt)
+        parts = reply.replace(",", " ").split()
+        try:
+            vals = [int(p) if integer else float(p) for p in parts]
+        except ValueError:
+            vals = []
+        ok = len(vals) == len(names) and all(np.isfinite(vals))
+        if ok and integer:
+            ok = all(v >= 0 for v in vals)
+        if ok:
+            return vals
+        kind = "whole numbers >= 0" if integer else "numbers"
+        hint = f"{reply.strip()!r} is not {len(names)} {kind} ({', '.join(names)}). "
+
+
+class ManualObserver:
+    """The operator counts and types; ``ask(prompt) -> reply`` is the caller's prompt.
+
+    ``mode="figures"``: after a run, blocks covered, blocks covered once, and the coverage
+    fitness 3R + c (R full rows from the bottom, c blocks in the next row). Repeat visits are not
+    asked: they are estimated as covered - covered once (a lower bound) and marked so in the log.
+    ``mode="pose"``: the final pose x y h (cm, cm, compass degrees).
+    """
+
+    FIGURES = ("blocks covered", "blocks covered once", "fitness 3R+c")
+    POSE = ("x cm", "y cm", "heading deg")
+
+    def __init__(self, ask: Ask, mode: str = "figures") -> None:
+        if mode not in ("figures", "pose"):
+            raise ValueError(f"mode must be figures or pose, got {mode!r}")
+        self.ask = ask
+        self.mode = mode
+        self.name = f"manual ({mode})"
+        self._record: Record = lambda _: None
+        self._run_id = ""
+
+    def begin(self, run_id: str, power_on_before: int, record: Record) -> None:
+        self._run_id, self._record = run_id, record
+
+    def on_cycle(self, power_on: int) -> None:
+        pass
+
+    def finish(self, cycles: int) -> Observation:
+        if self.mode == "pose":
+            vals = ask_numbers(self.ask, f"run {self._run_id}: final pose (x y heading)? ",
+                               self.POSE, integer=False)
+            pose = (vals[0], vals[1], vals[2])
+            self._record({"type": "final_pose", "run_id": self._run_id, "pose": list(pose)})
+            return Observation(final_pose=pose)
+        while True:
+            c, o, f = (int(v) for v in ask_numbers(
+                self.ask, f"run {self._run_id}: blocks covered, covered once, fitness 3R+c? ",
+                self.FIGURES, integer=True))
+            if o <= c and f <= c:
+                break
+            self.ask(f"covered once ({o}) and fitness ({f}) cannot exceed blocks covered ({c}); "
+                     "press Enter and type them again")
+        figures = {"blocks_covered": c, "blocks_covered_once": o, "fitness": f,
+                   "repeat_visits": c - o, "repeat_visits_estimated": True}
+        self._record({"type": "figures", "run_id": self._run_id, **figures})
+        return Observation(figures=figures)
+
+    def close(self) -> None:
+        pass
+
+
+# ---- from a command-line spec ----------------------------------------------------------------
+
+
+def open_observer(spec: str, ask: Ask | None = None, manual_mode: str = "figures",
+                  timeout: float = TRACKER_TIMEOUT_S) -> Observer:
+    """``tracker:HOST:PORT``, ``pipe:PATH`` or ``manual`` (needs ``ask``)."""
+    kind, _, rest = spec.partition(":")
+    if kind == "tracker":
+        host, sep, port = rest.rpartition(":")
+        if not sep or not port.isdigit() or not 0 < int(port) < 65536:
+            raise InputError(f"--observer tracker:HOST:PORT expected, got {spec!r}")
+        return TrackerObserver(open_tcp(host or "127.0.0.1", int(port), spec), timeout)
+    if kind == "pipe" and rest:
+        return TrackerObserver(open_pipe(rest, spec), timeout)
+    if spec == "manual":
+        if ask is None:
+            raise InputError("--observer manual needs an operator at a prompt")
+        return ManualObserver(ask, manual_mode)
+    raise InputError(f"--observer: expected tracker:HOST:PORT, pipe:PATH or manual, got {spec!r}")

@@ -1,0 +1,212 @@
+"""`pac-host evolve` end to end against the emulator on a real pseudo-terminal."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from pac_host.coverage import START_POSE, coverage_of_poses
+from pac_host.model import load_table, rollout, shifted_table
+
+from .conftest import SMALL, invoke, read_jsonl, results
+
+RUN_KEYS = {"run_id", "start_pose", "gait_cycles", "poses", "cycles_since_power_on"}
+
+
+def test_evolve_writes_a_complete_log_and_the_model_error_falls(baseline):
+    log = read_jsonl(baseline / "log.jsonl")
+    assert [r["generation"] for r in log] == [0, 20, 40]
+    for r in log:
+        assert len(r["tests"]) == 3 and len(r["observed"]) == 3 and len(r["run_ids"]) == 3
+        assert r["model_error_after"] <= r["model_error_before"]
+        assert r["operational_fitness"] >= 0 and r["used_gait_ids"]
+    # the model GA reduces the model's disagreement with the robot on the gait cycles used
+    assert sum(r["model_error_after"] for r in log) < sum(r["model_error_before"] for r in log)
+    assert log[0]["model_error_after"] < log[0]["model_error_before"]
+
+    runs = read_jsonl(baseline / "runs.jsonl")
+    assert [r["run_id"] for r in runs] == [i for r in log for i in r["run_ids"]]
+    truth = shifted_table().rows
+    power_on = 0
+    for run, rec_obs in zip(runs, [o for r in log for o in r["observed"]], strict=True):
+        assert set(run) == RUN_KEYS
+        assert len(run["poses"]) == len(run["gait_cycles"]) == 100
+        assert run["cycles_since_power_on"] == power_on  # the Stamp's count before the run
+        power_on += 100
+        # the observed path is the true robot's path plus the tracker's noise (0.5 cm, 1 deg)
+        true = rollout(truth, START_POSE, run["gait_cycles"])
+        err = np.array(run["poses"]) - true[1:]
+        assert np.abs(err[:, :2]).max() < 3.5 and np.abs(err[:, 2]).max() < 7
+        assert np.abs(np.array(run["start_pose"]) - START_POSE).max() < 7
+        # the figures logged are those of the observed path
+        cov = coverage_of_poses(np.vstack([[run["start_pose"]], run["poses"]]))
+        assert rec_obs["blocks_covered"] == int(cov.blocks_covered)
+        assert rec_obs["fitness"] == int(cov.fitness)
+
+    obs = read_jsonl(baseline / "observations.jsonl")
+    assert sum(o["type"] == "pose" for o in obs) == 9 * 100  # every pose logged
+    table = load_table(baseline / "model.json")
+    assert np.allclose(table.rows, np.array(log[-1]["model"]), atol=1e-6)
+    tc = json.loads((baseline / "turn_cycle.json").read_text())
+    assert tc["turn_cycle"] == log[-1]["operational"]
+    for png in ("coverage_path.png", "learning_progress.png"):
+        assert (baseline / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_byte_faults_change_nothing(baseline, tmp_path):
+    out = tmp_path / "faults"
+    res = invoke("evolve", "--out", str(out), "--generations", "40", *SMALL,
+                 "--drop-prob", "0.002", "--corrupt-prob", "0.002", "--sim-seed", "7")
+    assert res.exit_code == 0, res.output
+    assert results(out) == results(baseline)
+    assert (out / "runs.jsonl").read_text() == (baseline / "runs.jsonl").read_text()
+    done = [o for o in read_jsonl(out / "observations.jsonl") if o["type"] == "done"]
+    assert sum(o["lost_reports"] for o in done) > 0  # the faults really hit the line
+
+
+def test_robot_that_stops_answering_then_resume(baseline, tmp_path):
+    out = tmp_path / "cut"
+    # 3 tests x 100 gait cycles per punctuation: gait cycle 650 is the 50th of g40-t0
+    res = invoke("evolve", "--out", str(out), "--generations", "40", *SMALL,
+                 "--mute-after", "650")
+    assert res.exit_code == 1, res.output
+    lines = res.output.strip().splitlines()
+    assert lines[-1].startswith("pac-host: error:") and "stopped answering" in lines[-1]
+    assert f"--resume {out}" in lines[-1] and "Traceback" not in res.output
+    assert [r["generation"] for r in read_jsonl(out / "log.jsonl")] == [0, 20]
+    obs = read_jsonl(out / "observations.jsonl")
+    cut = [o for o in obs if o["type"] == "pose" and o["run_id"] == "g40-t0"]
+    assert [o["cycle"] for o in cut] == list(range(1, 51))  # everything seen was logged
+
+    res = invoke("evolve", "--resume", str(out))
+    assert res.exit_code == 0, res.output
+    assert results(out) == results(baseline)
+    runs, base = read_jsonl(out / "runs.jsonl"), read_jsonl(baseline / "runs.jsonl")
+    strip = [{k: v for k, v in r.items() if k != "cycles_since_power_on"} for r in runs]
+    assert strip == [{k: v for k, v in r.items() if k != "cycles_since_power_on"} for r in base]
+    assert runs[6]["cycles_since_power_on"] == 0  # a fresh power-on after the resume
+
+
+def test_resume_of_a_finished_run_changes_nothing(baseline, tmp_path):
+    import shutil
+
+    out = tmp_path / "copy"
+    shutil.copytree(baseline, out)
+    res = invoke("evolve", "--resume", str(out))
+    assert res.exit_code == 0, res.output
+    assert results(out) == results(baseline)
+
+
+def test_bad_input_is_one_line(tmp_path):
+    def one_line(res, code, words):
+        assert res.exit_code == code, res.output
+        last = res.output.strip().splitlines()[-1]
+        assert last.startswith("pac-host: error:") and words in last, res.output
+        assert "Traceback" not in res.output
+
+    one_line(invoke("evolve", "--generations", "0"), 2, "--out DIR is required")
+    one_line(invoke("evolve", "--resume", str(tmp_path)), 2, "no config.json")
+    one_line(invoke("evolve", "--out", str(tmp_path / "o"), "--observer", "camera"), 2,
+             "--observer: expected")
+    one_line(invoke("evolve", "--out", str(tmp_path / "o"), "--sim-noise", "x"), 2,
+             "--sim-noise")
+    one_line(invoke("evolve", "--out", str(tmp_path / "o"), "--port", "/dev/null",
+                    "--observer", "manual"), 2, "not a serial device")
+    (tmp_path / "used").mkdir()
+    (tmp_path / "used" / "state.json").write_text('{}\n')
+    one_line(invoke("evolve", "--out", str(tmp_path / "used")), 2, "use --resume")
+
+
+def test_evolve_against_a_pac_sim_process_with_its_tracker(baseline, tmp_path):
+    """The real-robot path: --port and --observer, here a separate pac-sim process whose world
+    is placed through its tracker (--placer tracker) instead of by a person."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    proc = subprocess.Popen([str(Path(sys.executable).parent / "pac-sim"), "--realtime", "0",
+                             "--tracker-noise", "0.5,1"], stdout=subprocess.PIPE, text=True)
+    try:
+        port = proc.stdout.readline().split()[-1]
+        tracker = proc.stdout.readline().split()[-1]
+        out = tmp_path / "proc"
+        res = invoke("evolve", "--port", port, "--observer", f"tracker:{tracker}",
+                     "--placer", "tracker", "--out", str(out), "--generations", "40", *SMALL)
+        assert res.exit_code == 0, res.output
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=10)
+    # the same robot, the same seed: the same results as with the built-in emulator (whose
+    # true table the log may also compare the model with)
+    base = results(baseline)
+    for r in base["log"]:
+        del r["true_error_on_used"]
+    assert results(out) == base
+    assert (out / "runs.jsonl").read_text() == (baseline / "runs.jsonl").read_text()
+
+
+def test_evolve_with_manual_counts(tmp_path):
+    out = tmp_path / "hand"
+    typed = "five 3 2\n5 3 2\n4 4 4\n6 2 3\n"  # the first reply is asked again
+    res = invoke("evolve", "--out", str(out), "--generations", "0", *SMALL,
+                 "--observer", "manual", input=typed)
+    assert res.exit_code == 0, res.output
+    assert "'five 3 2' is not 3 whole numbers" in res.output
+    rec = read_jsonl(out / "log.jsonl")[0]
+    assert [(o["blocks_covered"], o["blocks_covered_once"], o["fitness"])
+            for o in rec["observed"]] == [(5, 3, 2), (4, 4, 4), (6, 2, 3)]
+    assert rec["operational_fitness"] == 2
+    assert (out / "runs.jsonl").read_text() == ""  # counts are not paths: nothing to diagnose
+    figs = [o for o in read_jsonl(out / "observations.jsonl") if o["type"] == "figures"]
+    assert [f["repeat_visits"] for f in figs] == [2, 0, 4] and figs[0]["repeat_visits_estimated"]
+
+
+def test_a_finished_run_carried_on_equals_a_longer_run(baseline, tmp_path):
+    short = tmp_path / "short"
+    assert invoke("evolve", "--out", str(short), "--generations", "20", *SMALL).exit_code == 0
+    res = invoke("evolve", "--resume", str(short), "--generations", "40")
+    assert res.exit_code == 0, res.output
+    assert results(short) == results(baseline)
+
+
+def test_emulator_options_are_refused_with_a_port(tmp_path):
+    res = invoke("evolve", "--out", str(tmp_path / "o"), "--port", "/dev/null",
+                 "--observer", "manual", "--sim-table", "measured")
+    assert res.exit_code == 2 and "--sim-table describes the built-in emulator" in res.output
+
+
+def test_resume_keeps_the_emulated_world(tmp_path):
+    """A run against an emulator with an unmodelled effect resumes against the same world."""
+    out, whole = tmp_path / "cut", tmp_path / "whole"
+    world = ["--sim-effect", "yaw_bias:delta=1.5", "--sim-noise", "0.3,0.5"]
+    res = invoke("evolve", "--out", str(whole), "--generations", "20", *SMALL, *world)
+    assert res.exit_code == 0, res.output
+    res = invoke("evolve", "--out", str(out), "--generations", "20", *SMALL, *world,
+                 "--mute-after", "450")
+    assert res.exit_code == 1 and "stopped answering" in res.output
+    assert invoke("evolve", "--resume", str(out)).exit_code == 0
+    assert results(out) == results(whole)
+
+
+def test_path_fitness_brings_the_used_rows_to_the_robot(tmp_path):
+    """With --model-fitness steps the model GA scores one-step residuals of the observed
+    (noisy) paths, so the rows the tests use converge to the true robot's rows."""
+    out = tmp_path / "steps"
+    res = invoke("evolve", "--out", str(out), "--generations", "40", *SMALL,
+                 "--model-fitness", "steps")
+    assert res.exit_code == 0, res.output
+    log = read_jsonl(out / "log.jsonl")
+    assert all(r["model_fitness"] == "steps" for r in log)
+    used = sorted({g for r in log for g in r["used_gait_ids"]})
+    truth = shifted_table().rows[used]
+    start = np.abs(load_table_rows("measured")[used] - truth).mean()
+    end = np.abs(np.array(log[-1]["model"])[used] - truth).mean()
+    assert end < 0.75 * start, (start, end)
+
+
+def load_table_rows(name):
+    from pac_host.model import resolve_table
+
+    return resolve_table(name).rows

@@ -1,0 +1,53 @@
+"""`pac-host evolve --port` against `pac-sim --firmware`: the paper's loop with the firmware
+itself walking the tests (its servo trace moving the emulated world), for two punctuations."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pac_host.coverage import START_POSE
+from pac_host.model import rollout, shifted_table
+
+from .conftest import SMALL, invoke, read_jsonl, results
+
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "servobot.bs2"
+
+
+def test_evolve_against_the_firmware_in_the_loop(tmp_path):
+    builtin = tmp_path / "builtin"
+    res = invoke("evolve", "--out", str(builtin), "--generations", "20", *SMALL)
+    assert res.exit_code == 0, res.output
+    proc = subprocess.Popen(
+        [str(Path(sys.executable).parent / "pac-sim"), "--realtime", "0", "--tracker-noise",
+         "0.5,1", "--firmware", str(FIRMWARE)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = proc.stdout.readline().split()[-1]
+        tracker = proc.stdout.readline().split()[-1]
+        out = tmp_path / "firmware"
+        res = invoke("evolve", "--port", port, "--observer", f"tracker:{tracker}",
+                     "--placer", "tracker", "--out", str(out), "--generations", "20", *SMALL)
+        assert res.exit_code == 0, res.output
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+    assert "warning" not in proc.stderr.read()  # every gait cycle's thrust matched its row
+    log = read_jsonl(out / "log.jsonl")
+    assert [r["generation"] for r in log] == [0, 20]
+    runs = read_jsonl(out / "runs.jsonl")
+    assert len(runs) == 6 and all(len(r["gait_cycles"]) == 100 for r in runs)
+    for run in runs:  # the firmware's servo trace walked the true table's rows (plus noise)
+        true = rollout(shifted_table().rows, START_POSE, run["gait_cycles"])
+        err = np.array(run["poses"]) - true[1:]
+        assert np.abs(err[:, :2]).max() < 3.5 and np.abs(err[:, 2]).max() < 7
+    # the same robot, the same seeds: the same decisions as with the protocol-level emulator
+    base = results(builtin)
+    for r in base["log"]:
+        del r["true_error_on_used"]
+    assert results(out) == base
+    assert (out / "runs.jsonl").read_text() == (builtin / "runs.jsonl").read_text()
