@@ -23,13 +23,13 @@ from pac_host.coverage import simulate
 from pac_host.model import measured_table, shifted_table
 
 
-def _best_of(fn, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
+def _times(fn, repeats: int) -> np.ndarray:
+    out = np.empty(repeats)
+    for i in range(repeats):
         t = time.perf_counter()
         fn()
-        best = min(best, time.perf_counter() - t)
-    return best
+        out[i] = time.perf_counter() - t
+    return out
 
 
 def evals_per_second(quick: bool) -> dict:
@@ -39,9 +39,14 @@ def evals_per_second(quick: bool) -> dict:
     # random turn cycles, and a converged CGA population (what the hot loop really sees)
     random_pop = cga.random_population(rng, 1024)
     evolved, _ = cga.evolve(rows, cga.random_population(rng, 128), 200, rng)
-    for name, pop in (("random", random_pop), ("cga_population", np.tile(evolved, (8, 1, 1)))):
-        t = _best_of(lambda p=pop: simulate(rows, p, 200), 5 if quick else 25)
-        out[name] = round(len(pop) / t)
+    models = rows[None] + rng.normal(size=(64, 32, 3)) * 0.5
+    cases = (("random", rows, random_pop), ("cga_population", rows, np.tile(evolved, (8, 1, 1))),
+             ("models_64x3", models, random_pop[:3]))
+    for name, table, pop in cases:
+        t = _times(lambda t_=table, p=pop: simulate(t_, p, 200), 5 if quick else 60)
+        n = pop.shape[0] * (table.shape[0] if table.ndim == 3 else 1)
+        # the machine's other tenants make single timings noisy: report the best and the median
+        out[name] = {"best": round(n / t.min()), "median": round(n / float(np.median(t)))}
     return out
 
 
@@ -85,8 +90,9 @@ def run(quick: bool = False) -> dict:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
     targets = {
-        "evals_per_second": {"value": res["evals_per_second"]["random"], "target": ">= 100000",
-                             "met": res["evals_per_second"]["random"] >= 1e5},
+        "evals_per_second": {"value": res["evals_per_second"]["random"]["best"],
+                             "target": ">= 100000 (best of 60)",
+                             "met": res["evals_per_second"]["random"]["best"] >= 1e5},
         "punctuation_s": {"value": res["punctuation"]["median_s"], "target": "< 0.5",
                           "met": res["punctuation"]["median_s"] < 0.5},
     }

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -38,3 +41,22 @@ def baseline(tmp_path_factory) -> Path:
     res = invoke("evolve", "--out", str(out), "--generations", "40", *SMALL)
     assert res.exit_code == 0, res.output
     return out
+
+
+def evolve_against_pac_sim(out: Path, generations: int, *sim_args: str) -> str:
+    """`pac-host evolve --port` against a separate `pac-sim` process (the real-robot path: the
+    port, its tracker as observer and as placer); returns what pac-sim wrote to stderr."""
+    proc = subprocess.Popen(
+        [str(Path(sys.executable).parent / "pac-sim"), "--realtime", "0", "--tracker-noise",
+         "0.5,1", *sim_args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = proc.stdout.readline().split()[-1]
+        tracker = proc.stdout.readline().split()[-1]
+        res = invoke("evolve", "--port", port, "--observer", f"tracker:{tracker}",
+                     "--placer", "tracker", "--out", str(out), "--generations",
+                     str(generations), *SMALL)
+        assert res.exit_code == 0, res.output
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+    return proc.stderr.read()

@@ -9,7 +9,7 @@ import numpy as np
 from pac_host.coverage import START_POSE, coverage_of_poses
 from pac_host.model import load_table, rollout, shifted_table
 
-from .conftest import SMALL, invoke, read_jsonl, results
+from .conftest import SMALL, evolve_against_pac_sim, invoke, read_jsonl, results
 
 RUN_KEYS = {"run_id", "start_pose", "gait_cycles", "poses", "cycles_since_power_on"}
 
@@ -121,23 +121,8 @@ def test_bad_input_is_one_line(tmp_path):
 def test_evolve_against_a_pac_sim_process_with_its_tracker(baseline, tmp_path):
     """The real-robot path: --port and --observer, here a separate pac-sim process whose world
     is placed through its tracker (--placer tracker) instead of by a person."""
-    import signal
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    proc = subprocess.Popen([str(Path(sys.executable).parent / "pac-sim"), "--realtime", "0",
-                             "--tracker-noise", "0.5,1"], stdout=subprocess.PIPE, text=True)
-    try:
-        port = proc.stdout.readline().split()[-1]
-        tracker = proc.stdout.readline().split()[-1]
-        out = tmp_path / "proc"
-        res = invoke("evolve", "--port", port, "--observer", f"tracker:{tracker}",
-                     "--placer", "tracker", "--out", str(out), "--generations", "40", *SMALL)
-        assert res.exit_code == 0, res.output
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        proc.wait(timeout=10)
+    out = tmp_path / "proc"
+    evolve_against_pac_sim(out, 40)
     # the same robot, the same seed: the same results as with the built-in emulator (whose
     # true table the log may also compare the model with)
     base = results(baseline)

@@ -3,9 +3,6 @@ itself walking the tests (its servo trace moving the emulated world), for two pu
 
 from __future__ import annotations
 
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +10,7 @@ import numpy as np
 from pac_host.coverage import START_POSE
 from pac_host.model import rollout, shifted_table
 
-from .conftest import SMALL, invoke, read_jsonl, results
+from .conftest import SMALL, evolve_against_pac_sim, invoke, read_jsonl, results
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "servobot.bs2"
 
@@ -22,21 +19,9 @@ def test_evolve_against_the_firmware_in_the_loop(tmp_path):
     builtin = tmp_path / "builtin"
     res = invoke("evolve", "--out", str(builtin), "--generations", "20", *SMALL)
     assert res.exit_code == 0, res.output
-    proc = subprocess.Popen(
-        [str(Path(sys.executable).parent / "pac-sim"), "--realtime", "0", "--tracker-noise",
-         "0.5,1", "--firmware", str(FIRMWARE)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        port = proc.stdout.readline().split()[-1]
-        tracker = proc.stdout.readline().split()[-1]
-        out = tmp_path / "firmware"
-        res = invoke("evolve", "--port", port, "--observer", f"tracker:{tracker}",
-                     "--placer", "tracker", "--out", str(out), "--generations", "20", *SMALL)
-        assert res.exit_code == 0, res.output
-    finally:
-        proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=10)
-    assert "warning" not in proc.stderr.read()  # every gait cycle's thrust matched its row
+    out = tmp_path / "firmware"
+    stderr = evolve_against_pac_sim(out, 20, "--firmware", str(FIRMWARE))
+    assert "warning" not in stderr  # every gait cycle's thrust matched its row
     log = read_jsonl(out / "log.jsonl")
     assert [r["generation"] for r in log] == [0, 20]
     runs = read_jsonl(out / "runs.jsonl")
