@@ -226,13 +226,12 @@ def figures_from_blocks(blocks: np.ndarray, prev: np.ndarray | None = None
     prev[:, 0] = -1
     prev[:, 1:] = b[:, :-1]
     start = prev != b  # a visit starts where detection enters a block
+    start &= b >= 0
     n_rows = int(b.max(initial=-1)) // COLUMNS + 2
     n_blocks = n_rows * COLUMNS
-    # one slot per (path, block) plus a slot per path for "no block", dropped after counting;
-    # prev is free again and holds the slot keys
-    np.add(b, (np.arange(n_paths) * (n_blocks + 1) + 1)[:, None], out=prev)
-    visits = np.bincount(prev.ravel(), weights=start.ravel(), minlength=n_paths * (n_blocks + 1))
-    visits = visits.reshape(n_paths, n_blocks + 1)[:, 1:].astype(np.int64)
+    where = np.flatnonzero(start)  # the few visit starts, not every pose
+    key = where // b.shape[1] * n_blocks + b.ravel()[where]
+    visits = np.bincount(key, minlength=n_paths * n_blocks)
     visits = visits.reshape(n_paths, n_rows, COLUMNS)
     covered = visits > 0
     blocks_covered = covered.sum(axis=(1, 2))
