@@ -57,6 +57,6 @@ def evolve_against_pac_sim(out: Path, generations: int, *sim_args: str) -> str:
                      str(generations), *SMALL)
         assert res.exit_code == 0, res.output
     finally:
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(signal.SIGTERM)  # SIGINT is ignored under a background shell
         proc.wait(timeout=10)
     return proc.stderr.read()
