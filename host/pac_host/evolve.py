@@ -22,7 +22,6 @@ by the run's identity.
 from __future__ import annotations
 
 import json
-import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
@@ -34,6 +33,7 @@ from pac_host import pal
 from pac_host.coverage import START_POSE, detect_blocks, format_turn_cycle
 from pac_host.errors import InputError, PacError
 from pac_host.experiment import ExperimentConfig, initial_population
+from pac_host.files import write_atomic
 from pac_host.model.table import GaitTable, resolve_table, save_table
 from pac_host.robot.connect import Connection
 from pac_host.robot.linked import AppendLog, LinkedRobot
@@ -101,12 +101,6 @@ class EvolveDir:
         self.progress_png = root / "learning_progress.png"
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def _read_jsonl(path: Path) -> list[dict]:
     if not path.exists():
         return []
@@ -149,7 +143,7 @@ def _start(d: EvolveDir, cfg: EvolveConfig) -> tuple[pal.PALState, np.random.Gen
 
 
 def save_config(root: Path, cfg: EvolveConfig) -> None:
-    _write_atomic(EvolveDir(root).config,
+    write_atomic(EvolveDir(root).config,
                   json.dumps({"format": CONFIG_FORMAT, **asdict(cfg)}, indent=1) + "\n")
 
 
@@ -179,8 +173,8 @@ def _resume(d: EvolveDir) -> tuple[pal.PALState, np.random.Generator, bool]:
     g = state.generation
     log = [r for r in _read_jsonl(d.log) if r["generation"] <= g]
     runs = [r for r in _read_jsonl(d.runs) if _run_generation(r["run_id"]) <= g]
-    _write_atomic(d.log, "".join(json.dumps(r) + "\n" for r in log))
-    _write_atomic(d.runs, "".join(json.dumps(r) + "\n" for r in runs))
+    write_atomic(d.log, "".join(json.dumps(r) + "\n" for r in log))
+    write_atomic(d.runs, "".join(json.dumps(r) + "\n" for r in runs))
     AppendLog(d.observations)({"type": "resume", "generation": g, "time": time.time()})
     return state, rng, False
 
@@ -278,7 +272,7 @@ def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: d
     table = GaitTable(state.models[0], state.model_effects,
                       f"{model_name} evolved to generation {state.generation}")
     save_table(table, d.model)
-    _write_atomic(d.turn_cycle, json.dumps({
+    write_atomic(d.turn_cycle, json.dumps({
         "format": "pac-turn-cycle/1", "turn_cycle": format_turn_cycle(state.operational),
         "genes": state.operational.tolist(), "fitness_on_robot": state.operational_fitness,
         "generation": state.generation}, indent=1) + "\n")
@@ -289,4 +283,4 @@ def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: d
                       f"{rec['tests'][0]}",
                       best.figures())
     learning_progress(records, d.progress_png, "PAL on the robot")
-    _write_atomic(d.state, json.dumps(pal.state_to_json(state, rng)) + "\n")
+    write_atomic(d.state, json.dumps(pal.state_to_json(state, rng)) + "\n")

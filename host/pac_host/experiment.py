@@ -13,7 +13,6 @@ which runs a resumed experiment skips.
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -24,6 +23,7 @@ import numpy as np
 from pac_host import cga, pal, stats
 from pac_host.coverage import fitness_of_score, format_turn_cycle, simulate
 from pac_host.errors import InputError
+from pac_host.files import write_atomic
 from pac_host.model.effects import effective_rows
 from pac_host.model.table import GaitTable, measured_table, shifted_table
 
@@ -225,10 +225,8 @@ def run_experiment(
     if not resume and log_path.exists() and log_path.stat().st_size > 0:
         raise InputError(f"{log_path} exists: use --resume to continue it, or another --out")
     if resume and log_path.exists():  # drop incomplete runs' lines; they are rerun identically
-        keep = [json.dumps(r) for recs in done_runs.values() for r in recs]
-        tmp = log_path.with_suffix(".tmp")
-        tmp.write_text("".join(line + "\n" for line in keep))
-        os.replace(tmp, log_path)
+        write_atomic(log_path, "".join(json.dumps(r) + "\n"
+                                       for recs in done_runs.values() for r in recs))
 
     def tick(stage: str, total: int):
         count = [0]
@@ -268,9 +266,7 @@ def run_experiment(
         "runs": results,
         "comparison": compare(results, cfg, optimum),
     }
-    tmp = out_dir / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=1) + "\n")
-    os.replace(tmp, out_dir / "summary.json")
+    write_atomic(out_dir / "summary.json", json.dumps(summary, indent=1) + "\n")
     return summary
 
 

@@ -148,7 +148,7 @@ def breed(
 def evolve(
     tables: np.ndarray,
     tests: np.ndarray,
-    observed: np.ndarray,
+    observed: np.ndarray | None,
     generations: int,
     rng: np.random.Generator,
     method: str = "partial",

@@ -192,7 +192,6 @@ def punctuate(
     model_rows = state.models[0]
     predicted = simulate(model_rows, tests, cfg.budget, state.model_effects)
     results = robot.run_tests(tests)
-    observed = np.array([[r.blocks_covered, r.blocks_covered_once] for r in results])
 
     replaced = state.operational_score is None or results[0].score > state.operational_score
     if replaced:
@@ -204,7 +203,7 @@ def punctuate(
     error_fn = model_error_fn(tests, results, cfg, state.model_effects)
     error_before = error_fn(state.models[:1])[0]
     models, errors = model_ga.evolve(
-        state.models, tests, observed, cfg.model_generations, rng, cfg.method,
+        state.models, tests, None, cfg.model_generations, rng, cfg.method,
         cfg.model_config(), state.model_effects, error_fn,
     )
     record = {

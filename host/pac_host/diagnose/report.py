@@ -14,6 +14,7 @@ import numpy as np
 
 from pac_host.diagnose.pipeline import Diagnosis
 from pac_host.diagnose.residuals import top_places
+from pac_host.files import write_atomic
 from pac_host.model.table import COMPONENTS
 
 FORMAT = "pac-diagnosis/1"
@@ -73,10 +74,7 @@ def to_json(d: Diagnosis, meta: dict | None = None) -> dict:
 
 
 def write_json(doc: dict, path: str | Path) -> None:
-    p = Path(path)
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    tmp.replace(p)
+    write_atomic(path, json.dumps(doc, indent=1) + "\n")
 
 
 def summary(d: Diagnosis) -> list[str]:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from pac_host.errors import InputError
+from pac_host.files import write_atomic
 
 N_IDS = 32
 
@@ -138,9 +139,4 @@ def read_runs(path: str | Path) -> list[Run]:
 
 def write_runs(runs: Iterable[Run], path: str | Path) -> None:
     """Write runs as JSON Lines (atomically: a crash never leaves half a file)."""
-    p = Path(path)
-    tmp = p.with_name(p.name + ".tmp")
-    with tmp.open("w") as f:
-        for r in runs:
-            f.write(json.dumps(r.to_json()) + "\n")
-    tmp.replace(p)
+    write_atomic(path, "".join(json.dumps(r.to_json()) + "\n" for r in runs))

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from pac_host.errors import InputError
+from pac_host.files import write_atomic
 
 FORMAT = "pac-gait-table/1"
 N_IDS = 32
@@ -157,10 +158,7 @@ def load_table(path: str | Path) -> GaitTable:
 
 def save_table(table: GaitTable, path: str | Path) -> None:
     """Write a table as pac-gait-table/1 (atomically: a crash never leaves half a file)."""
-    p = Path(path)
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(json.dumps(table.to_json(), indent=1) + "\n")
-    tmp.replace(p)
+    write_atomic(path, json.dumps(table.to_json(), indent=1) + "\n")
 
 
 def resolve_table(spec: str) -> GaitTable:
