@@ -27,12 +27,16 @@ from pac_host.errors import InputError
 from pac_host.model.effects import (
     Effect,
     effective_rows,
-    gather_rows,
     has_sequence_effects,
     step_moves,
     world_drift,
 )
-from pac_host.model.kinematics import complex_moves, integrate_path
+from pac_host.model.kinematics import (
+    accumulate_headings,
+    complex_moves,
+    heading_rotation,
+    scan_moves,
+)
 
 START_POSE = (45.0, 30.0, 90.0)
 BLOCK_CM = 60.0
@@ -119,41 +123,84 @@ def check_budget(budget: int) -> int:
     return int(budget)
 
 
-def expand(genes: np.ndarray, budget: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gait ids executed by each looped turn cycle: genes (P, 9, 2) -> ids (P, budget).
+# Entries of a chunk's step table ahead of the genes': the leading one of the heading scan,
+# the start pose, and standing still (a turn cycle with no repetitions at all).
+_ONE, _START, _STILL = 0, 1, 2
+_FIRST_GENE = 3
+_POSITIONS_CACHED_UP_TO = 1024  # budgets whose loop-position table is kept (568 x budget)
+_positions: dict[int, np.ndarray] = {}
 
-    Also returns a (P,) mask of turn cycles with no repetitions at all, which stand still.
+
+def _loop_positions(loop_len: np.ndarray, budget: int, out: np.ndarray) -> None:
+    """``out[p, t] = t mod loop_len[p]`` (0 for empty loops), by lookup for common budgets:
+    integer modulo is the slowest numpy operation there is."""
+    top = MAX_GENES * MAX_REPS
+    if budget > _POSITIONS_CACHED_UP_TO or loop_len.size and loop_len.max() > top:
+        np.remainder(np.arange(budget), np.maximum(loop_len, 1)[:, None], out=out)
+        return
+    table = _positions.get(budget)
+    if table is None:
+        lengths = np.maximum(np.arange(top + 1), 1)[:, None]
+        table = _positions[budget] = np.arange(budget) % lengths
+    np.take(table, loop_len, axis=0, out=out)
+
+
+def _step_entries(genes: np.ndarray, budget: int, out: np.ndarray, pos: np.ndarray
+                  ) -> np.ndarray:
+    """Which gene each looped turn cycle executes at each of its ``budget`` steps.
+
+    ``genes`` (P, G, 2); fills ``out`` (P, budget) with the entry ``_FIRST_GENE + p G + g`` of
+    gene g of path p, or ``_STILL`` for a turn cycle with no repetitions, using ``pos`` (P,
+    budget) as scratch. Returns the (P,) mask of such still turn cycles.
     """
-    genes = np.asarray(genes)
-    ids, reps = genes[..., 0], genes[..., 1]
+    reps = genes[..., 1]
     loop_len = reps.sum(axis=-1)
     still = loop_len == 0
-    flat = np.repeat(ids.ravel(), reps.ravel())
-    if flat.size == 0:
-        flat = np.zeros(1, dtype=ids.dtype)
-    offsets = np.cumsum(loop_len) - loop_len
-    # position in the loop, t mod L, via a floor (exact: t / L is never within 1e-9 of an
-    # integer unless it is one) because integer modulo is the slowest numpy operation here
-    t = np.arange(budget, dtype=np.float64)[None, :]
-    length = np.maximum(loop_len, 1).astype(np.float64)[:, None]
-    idx = t - length * np.floor(t * (1.0 / length) + 1e-9)
-    idx += offsets[:, None]
-    out = np.take(flat, idx.astype(np.int64), mode="clip")
-    return out, still
+    entries = np.repeat(np.arange(_FIRST_GENE, _FIRST_GENE + reps.size), reps.ravel())
+    if entries.size == 0:
+        out[...] = _STILL
+        return still
+    _loop_positions(loop_len, budget, pos)
+    pos += (np.cumsum(loop_len) - loop_len)[:, None]  # where each path's loop starts
+    np.take(entries, pos, out=out, mode="clip")
+    if still.any():
+        out[still] = _STILL
+    return still
+
+
+def expand(genes: np.ndarray, budget: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gait ids executed by each looped turn cycle: genes (P, G, 2) -> ids (P, budget).
+
+    Also returns a (P,) mask of turn cycles with no repetitions at all, which stand still
+    (their ids are 0).
+    """
+    genes = np.asarray(genes)
+    shape = (genes.shape[0], budget)
+    steps = np.empty(shape, dtype=np.intp)
+    still = _step_entries(genes, budget, steps, np.empty(shape, dtype=np.intp))
+    ids = np.concatenate((np.zeros(_FIRST_GENE, dtype=genes.dtype), genes[..., 0].ravel()))
+    return ids[steps], still
 
 
 class _Workspace:
-    """Scratch arrays for one (paths, poses) shape, reused chunk after chunk: allocating them
+    """Scratch arrays for one (paths, budget) shape, reused chunk after chunk: allocating them
     afresh costs more in page faults than the arithmetic done in them."""
 
     def __init__(self, shape: tuple[int, int]) -> None:
-        self.q = np.empty(shape, dtype=np.complex128)
-        self.p = np.empty(shape, dtype=np.complex128)
-        self.f = [np.empty(shape) for _ in range(6)]
-        self.ok = np.empty(shape, dtype=bool)
-        self.tmp = np.empty(shape, dtype=bool)
-        self.blocks = np.empty(shape, dtype=np.int64)
-        self.prev = np.empty(shape, dtype=np.int64)
+        n_paths, budget = shape
+        poses = (n_paths, budget + 1)
+        self.q = np.empty((n_paths, budget + 2), dtype=np.complex128)
+        self.p = np.empty(poses, dtype=np.complex128)
+        self.steps = np.empty((n_paths, budget + 2), dtype=np.intp)
+        self.steps[:, 0], self.steps[:, 1] = _ONE, _START
+        self.pos = np.empty(shape, dtype=np.intp)
+        self.gene_rot = np.empty(_FIRST_GENE + n_paths * MAX_GENES, dtype=np.complex128)
+        self.gene_disp = np.empty_like(self.gene_rot)
+        self.f = [np.empty(poses) for _ in range(6)]
+        self.ok = np.empty(poses, dtype=bool)
+        self.tmp = np.empty(poses, dtype=bool)
+        self.blocks = np.empty(poses, dtype=np.int64)
+        self.prev = np.empty(poses, dtype=np.int64)
 
 
 _local = threading.local()
@@ -177,12 +224,14 @@ def detect_blocks(poses: np.ndarray) -> np.ndarray:
     flat = (a.reshape(-1, poses.shape[-2]) for a in
             (poses[..., 0], poses[..., 1], np.sin(rad), np.cos(rad)))
     x, y, s, c = flat
-    return _detect(x, y, s, c, _Workspace(x.shape)).reshape(poses.shape[:-1]).copy()
+    return _detect(x, y, s, c, _Workspace((x.shape[0], x.shape[1] - 1))).reshape(
+        poses.shape[:-1]).copy()
 
 
 def _detect(x: np.ndarray, y: np.ndarray, sin_h: np.ndarray, cos_h: np.ndarray,
             ws: _Workspace) -> np.ndarray:
-    """The body-width test on (paths, poses) arrays, in the workspace's arrays."""
+    """The body-width test on (paths, poses) arrays, in the workspace's arrays (only the
+    magnitudes of the heading's sine and cosine matter)."""
     hx, hy, lo, hi, col, row = ws.f
     ok, tmp = ws.ok, ws.tmp
     np.abs(cos_h, out=hx)
@@ -279,19 +328,22 @@ def simulate(
     n_tables = 1 if rows.ndim == 2 else rows.shape[0]
     n_genes = genes.shape[0]
     n_paths = n_tables * n_genes
-    start = np.asarray(start_pose, dtype=np.float64)
-    effects = tuple(effects)
+    run = _Runner(rows, budget, tuple(effects), np.asarray(start_pose, dtype=np.float64),
+                  keep_paths)
     figures = np.empty((4, n_paths), dtype=np.int64)
     poses = np.empty((n_paths, budget + 1, 3)) if keep_paths else None
     blocks = np.empty((n_paths, budget + 1), dtype=np.int64) if keep_paths else None
     for lo in range(0, n_paths, CHUNK_PATHS):
-        k = np.arange(lo, min(lo + CHUNK_PATHS, n_paths))
-        rows_k = rows if rows.ndim == 2 else rows[k // n_genes]
-        path, blocks_k = _run_chunk(rows_k, genes[k % n_genes], budget, effects, start, keep_paths)
-        figures[:, k] = figures_from_blocks(blocks_k, _workspace(blocks_k.shape).prev)
+        hi = min(lo + CHUNK_PATHS, n_paths)
+        if rows.ndim == 2:
+            ws, h = run.chunk(genes[lo:hi], None)
+        else:
+            k = np.arange(lo, hi)
+            ws, h = run.chunk(genes[k % n_genes], k // n_genes)
+        figures[:, lo:hi] = figures_from_blocks(ws.blocks, ws.prev)
         if keep_paths:
-            poses[k] = path.poses()
-            blocks[k] = blocks_k
+            poses[lo:hi] = np.stack((ws.p.real, ws.p.imag, h), axis=-1)
+            blocks[lo:hi] = ws.blocks
     shape = (n_genes,) if rows.ndim == 2 else (n_tables, n_genes)
     covered, once, fitness, repeat = (f.reshape(shape) for f in figures)
     if keep_paths:
@@ -300,26 +352,77 @@ def simulate(
     return Coverage(covered, once, fitness, repeat, poses, blocks)
 
 
-def _run_chunk(rows, genes, budget, effects, start, headings):
-    """Paths and detected blocks of a small batch: one table (32, 3) or one per turn cycle."""
-    ids, still = expand(genes, budget)
-    if has_sequence_effects(effects):
-        body, world = step_moves(rows, ids, effects)
-        cmoves = complex_moves(body)
-    else:  # moves depend on the gait id alone: look them up from 32 precomputed rows
-        table = effective_rows(rows, effects)
-        body = gather_rows(table, ids) if headings else None
-        cmoves = gather_rows(complex_moves(table), ids)
-        drift = world_drift(effects)
-        world = None if drift is None else np.broadcast_to(drift, ids.shape + (2,))
-    if still.any():
-        cmoves[still] = (0.0, 1.0)
-        if body is not None:
-            body = body.copy()
-            body[still] = 0.0
+class _Runner:
+    """Runs chunks of paths on one table or a batch of tables, with the moves looked up per
+    gene: when the effects depend on the gait id alone, a path's moves are its genes' rows."""
+
+    def __init__(self, rows: np.ndarray, budget: int, effects: tuple[Effect, ...],
+                 start: np.ndarray, keep: bool) -> None:
+        self.rows, self.budget, self.effects, self.keep = rows, budget, effects, keep
+        self.sequence = has_sequence_effects(effects)
+        self.q0 = heading_rotation(start[2])
+        self.p0 = start[0] + 1j * start[1]
+        self.h0 = start[2]
+        if not self.sequence:
+            table = effective_rows(rows, effects).reshape(-1, 3)
+            self.moves = complex_moves(table)
+            self.turns = table[:, 2]
+            drift = world_drift(effects)
+            self.drift = None if drift is None else complex(drift[0], drift[1])
+
+    def chunk(self, genes: np.ndarray, tables: np.ndarray | None
+              ) -> tuple[_Workspace, np.ndarray | None]:
+        """Integrate and detect a chunk of paths (genes (P, G, 2), one table index per path or
+        None for the single table); returns the workspace holding them, and the headings
+        when paths are kept."""
+        n = genes.shape[0]
+        ws = _workspace((n, self.budget))
+        still = _step_entries(genes, self.budget, ws.steps[:, 2:], ws.pos)
+        ids = genes[..., 0] if tables is None else genes[..., 0] + 32 * tables[:, None]
+        if self.sequence:
+            heads = self._sequence_moves(ids, tables, still, ws)
+        else:
+            heads = self._table_moves(ids.ravel(), still, ws)
+        q = ws.q[:, 1:]
+        _detect(ws.p.real, ws.p.imag, q.imag, q.real, ws)
+        return ws, heads
+
+    def _table_moves(self, ids: np.ndarray, still: np.ndarray, ws: _Workspace
+                     ) -> np.ndarray | None:
+        end = _FIRST_GENE + ids.size
+        rot, disp = ws.gene_rot[:end], ws.gene_disp[:end]
+        rot[:_FIRST_GENE] = 1.0, self.q0, 1.0
+        disp[:_FIRST_GENE] = self.p0, self.p0, 0.0
+        np.take(self.moves[:, 1], ids, out=rot[_FIRST_GENE:])
+        np.take(self.moves[:, 0], ids, out=disp[_FIRST_GENE:])
+        np.take(rot, ws.steps, out=ws.q, mode="clip")
+        np.take(disp, ws.steps[:, 1:], out=ws.p, mode="clip")
+        drift = self.drift
+        if drift is not None and still.any():
+            drift = np.where(still, 0.0, drift)[:, None]
+        scan_moves(ws.q, ws.p, drift)
+        if not self.keep:
+            return None
+        turns = np.concatenate((np.zeros(_FIRST_GENE), self.turns[ids]))
+        return accumulate_headings(self.h0, turns[ws.steps[:, 2:]])
+
+    def _sequence_moves(self, ids: np.ndarray, tables: np.ndarray | None, still: np.ndarray,
+                        ws: _Workspace) -> np.ndarray | None:
+        """Moves that depend on what ran before (e.g. a transition cost): per step."""
+        flat = np.concatenate((np.zeros(_FIRST_GENE, dtype=ids.dtype), ids.ravel() % 32))
+        steps = flat[ws.steps[:, 2:]]
+        rows = self.rows if tables is None else self.rows[tables]
+        body, world = step_moves(rows, steps, self.effects)
+        body = np.array(body)
+        body[still] = 0.0
+        cm = complex_moves(body)
+        ws.q[:, 0], ws.q[:, 1] = 1.0, self.q0
+        ws.q[:, 2:] = cm[..., 1]
+        ws.p[:, 0] = self.p0
+        ws.p[:, 1:] = cm[..., 0]
+        drift = None
         if world is not None:
-            world = np.array(world)
-            world[still] = 0.0
-    ws = _workspace(ids.shape[:-1] + (budget + 1,))
-    path = integrate_path(start, body, world, cmoves, headings, (ws.q, ws.p))
-    return path, _detect(path.x, path.y, path.sin_h, path.cos_h, ws)
+            drift = np.array(world[..., 0] + 1j * world[..., 1])
+            drift[still] = 0.0
+        scan_moves(ws.q, ws.p, drift)
+        return accumulate_headings(self.h0, body[..., 2]) if self.keep else None

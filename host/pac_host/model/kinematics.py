@@ -36,7 +36,7 @@ class Path(NamedTuple):
 
 
 def complex_moves(body: np.ndarray) -> np.ndarray:
-    """Moves (..., 3) in the complex form :func:`integrate_path` works in (..., 2):
+    """Moves (..., 3) in the complex form :func:`scan_moves` works in (..., 2):
     the displacement ``T + i F`` and the heading rotation ``exp(-i dH)``."""
     body = np.asarray(body, dtype=np.float64)
     out = np.empty(body.shape[:-1] + (2,), dtype=np.complex128)
@@ -45,49 +45,70 @@ def complex_moves(body: np.ndarray) -> np.ndarray:
     return out
 
 
-def integrate_path(
-    start_pose: np.ndarray,
-    body: np.ndarray | None,
-    world: np.ndarray | None = None,
-    cmoves: np.ndarray | None = None,
-    headings: bool = True,
-    out: tuple[np.ndarray, np.ndarray] | None = None,
-) -> Path:
-    """Integrate body-frame moves (..., n, 3) from a start pose (..., 3) into a :class:`Path`.
+def heading_rotation(h: np.ndarray | float) -> np.ndarray:
+    """A compass heading (deg) as the unit complex number ``q = cos h - i sin h``."""
+    return np.exp(-1j * np.radians(h))
+
+
+def scan_moves(q: np.ndarray, p: np.ndarray, drift: np.ndarray | None = None) -> None:
+    """The pose update over whole paths at once, in place, in complex form.
+
+    On entry ``q`` (..., n + 2) holds ``[1, q_0, r_1 .. r_n]``: a one, the start heading as
+    :func:`heading_rotation` and each move's rotation ``exp(-i dH)``; ``p`` (..., n + 1) holds
+    ``[x_0 + i y_0, d_1 .. d_n]``: the start position and each move's displacement ``T + i F``.
+    On return ``q[..., 1:]`` holds the headings ``q_0 .. q_n`` and ``p`` the positions.
 
     With q = cos h - i sin h, a move (F, T) in the frame of heading h displaces the robot by
     ``q * (T + i F)`` in the complex plane x + i y, and the heading advances as
-    ``q' = q * exp(-i dH)``. So a population of paths costs one cumulative product and one
-    cumulative sum, with no per-step trigonometry. ``cmoves`` may supply the moves already in
-    that form (see :func:`complex_moves`), e.g. looked up per gait id from a table of 32;
-    ``body`` then only needs to provide dH for the headings. ``world`` (..., n, 2) is a
-    world-frame drift added after each move. ``out`` may give two complex arrays (..., n + 1)
-    to work in (heading and position), so a hot loop need not allocate them each call.
+    ``q' = q * exp(-i dH)``. So a population of paths costs one cumulative product, one
+    product and one cumulative sum, with no per-step trigonometry; the leading one lines each
+    move up with the heading it starts from. ``drift`` (broadcast to (..., n)) is a world-frame
+    displacement added after each move.
+    """
+    np.multiply.accumulate(q, axis=-1, out=q)
+    p *= q[..., :-1]
+    if drift is not None:
+        p[..., 1:] += drift
+    np.add.accumulate(p, axis=-1, out=p)
+
+
+def integrate_path(
+    start_pose: np.ndarray,
+    body: np.ndarray,
+    world: np.ndarray | None = None,
+    headings: bool = True,
+) -> Path:
+    """Integrate body-frame moves (..., n, 3) from a start pose (..., 3) into a :class:`Path`.
+
+    ``world`` (..., n, 2) is an optional world-frame drift added after each move.
     """
     start_pose = np.asarray(start_pose, dtype=np.float64)
-    if cmoves is None:
-        cmoves = complex_moves(body)
+    body = np.asarray(body, dtype=np.float64)
+    cmoves = complex_moves(body)
     n = cmoves.shape[-2]
     lead = np.broadcast_shapes(start_pose.shape[:-1], cmoves.shape[:-2])
-    # the start pose goes in as element 0, so one in-place scan carries it along
-    q, p = out if out is not None else (np.empty(lead + (n + 1,), dtype=np.complex128),
-                                        np.empty(lead + (n + 1,), dtype=np.complex128))
-    q[..., 0] = np.exp(-1j * np.radians(start_pose[..., 2]))
-    q[..., 1:] = cmoves[..., 1]
-    np.multiply.accumulate(q, axis=-1, out=q)
+    q = np.empty(lead + (n + 2,), dtype=np.complex128)
+    p = np.empty(lead + (n + 1,), dtype=np.complex128)
+    q[..., 0] = 1.0
+    q[..., 1] = heading_rotation(start_pose[..., 2])
+    q[..., 2:] = cmoves[..., 1]
     p[..., 0] = start_pose[..., 0] + 1j * start_pose[..., 1]
-    np.multiply(cmoves[..., 0], q[..., :-1], out=p[..., 1:])
-    if world is not None:
-        p[..., 1:] += world[..., 0] + 1j * world[..., 1]
-    np.add.accumulate(p, axis=-1, out=p)
-    h = None
-    if headings:
-        body = np.asarray(body, dtype=np.float64)
-        h = np.empty(lead + (n + 1,))
-        h[..., 0] = start_pose[..., 2]
-        np.cumsum(body[..., 2], axis=-1, out=h[..., 1:])
-        h[..., 1:] += start_pose[..., 2:3]
-    return Path(p.real, p.imag, h, -q.imag, q.real)
+    p[..., 1:] = cmoves[..., 0]
+    scan_moves(q, p, None if world is None else world[..., 0] + 1j * world[..., 1])
+    h = accumulate_headings(start_pose[..., 2], body[..., 2], lead) if headings else None
+    return Path(p.real, p.imag, h, -q[..., 1:].imag, q[..., 1:].real)
+
+
+def accumulate_headings(h0: np.ndarray | float, dh: np.ndarray,
+                        lead: tuple[int, ...] | None = None) -> np.ndarray:
+    """Unwrapped headings (..., n + 1) from a start heading and heading changes (..., n)."""
+    h0 = np.asarray(h0, dtype=np.float64)
+    lead = dh.shape[:-1] if lead is None else lead
+    h = np.empty(lead + (dh.shape[-1] + 1,))
+    h[..., 0] = h0
+    np.cumsum(dh, axis=-1, out=h[..., 1:])
+    h[..., 1:] += h0[..., None]
+    return h
 
 
 def integrate(
