@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pac_host.coverage import (
+    START_POSE,
     coverage_of_poses,
     detect_blocks,
     expand,
@@ -25,7 +26,9 @@ M = measured_table().rows
     ((150, 90, 45), 5),        # diagonal body inside row 1, col 2
     ((57, 30, 0), -1),         # heading +y: body spans x 51..63, straddles columns 0 and 1
     ((45, 58, 90), -1),        # heading +x: body spans y 52..64, straddles rows 0 and 1
-    ((45, 54, 90), 0),         # y 48..60: the far end touches row 1's border: not inside row 0
+    ((45, 54, 90), -1),        # y 48..60: the far end lies on row 1's border, so in row 1
+    ((45, 6, 90), 0),          # y 0..12: the near end on y = 0 is inside
+    ((45, 5.99, 90), -1),
     ((45, 53.9, 90), 0),
     ((-1, 30, 0), -1),         # outside the area on the left
     ((178, 30, 0), -1),        # x 172..184 passes the right edge at 180
@@ -33,11 +36,7 @@ M = measured_table().rows
     ((100, 1000, 180), 49),    # far up: row 16 (960..1020), col 1
 ])
 def test_detection_rule_by_hand(pose, block):
-    b = detect_blocks(np.array([pose], dtype=float))[0]
-    if pose == (45, 54, 90):
-        assert b == -1  # y + 6 = 60 lies in row 1
-    else:
-        assert b == block
+    assert detect_blocks(np.array([pose], dtype=float))[0] == block
 
 
 def test_figures_by_hand():
@@ -86,10 +85,10 @@ def _random_genes(rng, n):
                                      (Effect("floor_slope", {"s": 1.0, "theta": 45}),)])
 def test_population_batch_equals_one_at_a_time(effects):
     rng = np.random.default_rng(3)
-    genes = _random_genes(rng, 150)  # spans several inner chunks
+    genes = _random_genes(rng, 300)  # spans several inner chunks
     genes[7, :, 1] = 0
     batch = simulate(M, genes, 200, effects)
-    for i in range(0, 150, 13):
+    for i in range(0, 300, 23):
         one = simulate(M, genes[i], 200, effects)
         assert one.row(0) == batch.row(i)
 
@@ -103,6 +102,28 @@ def test_model_population_batch_equals_one_table_at_a_time():
     for m in range(5):
         one = simulate(tables[m], genes)
         assert np.array_equal(one.score(), batch.score()[m])
+
+
+@pytest.mark.parametrize("effects", [(), (Effect("transition", {"alpha": 0.3}),),
+                                     (Effect("floor_slope", {"s": 1.0, "theta": 45}),),
+                                     (Effect("turn_shift", {"k": 1}),)])
+def test_kept_paths_are_the_rollouts_across_tables_and_chunks(effects):
+    # the batch's per-gene move lookup must walk each path exactly as the one-path rollout
+    # (the pose update's reference), including standing still and on tables past the first
+    rng = np.random.default_rng(5)
+    tables = M[None] + rng.normal(size=(3, 32, 3)) * 0.5
+    genes = _random_genes(rng, 100)
+    genes[4, :, 1] = 0  # stands still
+    genes[9, :, 1] = 0
+    genes[9, 2, 1] = 1  # a loop of one gait cycle
+    cov = simulate(tables, genes, 60, effects, keep_paths=True)  # 300 paths: several chunks
+    ids, still = expand(genes, 60)
+    assert still.tolist() == [i == 4 for i in range(100)]
+    assert np.all(cov.poses[:, 4] == START_POSE)
+    for m, i in [(0, 0), (0, 9), (1, 50), (2, 9), (2, 99)]:
+        want = rollout(tables[m], START_POSE, ids[i], effects)
+        np.testing.assert_allclose(cov.poses[m, i], want, atol=1e-9)
+        assert coverage_of_poses(want).row() == cov.row((m, i))
 
 
 def test_gap_between_model_and_actual_is_visible():
