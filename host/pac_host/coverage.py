@@ -142,27 +142,36 @@ def _loop_positions(loop_len: np.ndarray, budget: int, out: np.ndarray) -> None:
     if table is None:
         lengths = np.maximum(np.arange(top + 1), 1)[:, None]
         table = _positions[budget] = np.arange(budget) % lengths
-    np.take(table, loop_len, axis=0, out=out)
+    np.take(table, loop_len, axis=0, out=out, mode="clip")
 
 
-def _step_entries(genes: np.ndarray, budget: int, out: np.ndarray, pos: np.ndarray
-                  ) -> np.ndarray:
+def _step_entries(genes: np.ndarray, budget: int, out: np.ndarray, pos: np.ndarray,
+                  first: np.ndarray) -> np.ndarray:
     """Which gene each looped turn cycle executes at each of its ``budget`` steps.
 
     ``genes`` (P, G, 2); fills ``out`` (P, budget) with the entry ``_FIRST_GENE + p G + g`` of
-    gene g of path p, or ``_STILL`` for a turn cycle with no repetitions, using ``pos`` (P,
-    budget) as scratch. Returns the (P,) mask of such still turn cycles.
+    gene g of path p, or ``_STILL`` for a turn cycle with no repetitions, using ``pos`` and
+    ``first`` (P, budget) as scratch. Returns the (P,) mask of such still turn cycles.
     """
     reps = genes[..., 1]
+    n_paths, n_genes = reps.shape
     loop_len = reps.sum(axis=-1)
     still = loop_len == 0
-    entries = np.repeat(np.arange(_FIRST_GENE, _FIRST_GENE + reps.size), reps.ravel())
-    if entries.size == 0:
-        out[...] = _STILL
-        return still
+    # the first pass of each loop (up to the budget) as a step function: mark where each gene
+    # starts with the change of entry there, then an integer cumulative sum, which is cheap
+    # and, unlike np.repeat, writes into a reused array
+    starts = np.cumsum(reps, axis=-1) - reps
+    path, gene = np.nonzero((reps > 0) & (starts < budget))
+    entry = _FIRST_GENE + path * n_genes + gene
+    change = np.diff(entry, prepend=0)
+    new_path = np.diff(path, prepend=-1) != 0
+    change[new_path] = entry[new_path]
+    first.fill(0)
+    first[path, starts[path, gene]] = change
+    np.cumsum(first, axis=1, out=first)
     _loop_positions(loop_len, budget, pos)
-    pos += (np.cumsum(loop_len) - loop_len)[:, None]  # where each path's loop starts
-    np.take(entries, pos, out=out, mode="clip")
+    pos += (np.arange(n_paths) * budget)[:, None]
+    np.take(first.ravel(), pos, out=out, mode="clip")
     if still.any():
         out[still] = _STILL
     return still
@@ -176,8 +185,8 @@ def expand(genes: np.ndarray, budget: int) -> tuple[np.ndarray, np.ndarray]:
     """
     genes = np.asarray(genes)
     shape = (genes.shape[0], budget)
-    steps = np.empty(shape, dtype=np.intp)
-    still = _step_entries(genes, budget, steps, np.empty(shape, dtype=np.intp))
+    steps, pos, first = (np.empty(shape, dtype=np.intp) for _ in range(3))
+    still = _step_entries(genes, budget, steps, pos, first)
     ids = np.concatenate((np.zeros(_FIRST_GENE, dtype=genes.dtype), genes[..., 0].ravel()))
     return ids[steps], still
 
@@ -194,6 +203,7 @@ class _Workspace:
         self.steps = np.empty((n_paths, budget + 2), dtype=np.intp)
         self.steps[:, 0], self.steps[:, 1] = _ONE, _START
         self.pos = np.empty(shape, dtype=np.intp)
+        self.first = np.empty(shape, dtype=np.intp)
         self.gene_rot = np.empty(_FIRST_GENE + n_paths * MAX_GENES, dtype=np.complex128)
         self.gene_disp = np.empty_like(self.gene_rot)
         self.f = [np.empty(poses) for _ in range(6)]
@@ -379,7 +389,7 @@ class _Runner:
         when paths are kept."""
         n = genes.shape[0]
         ws = _workspace((n, self.budget))
-        still = _step_entries(genes, self.budget, ws.steps[:, 2:], ws.pos)
+        still = _step_entries(genes, self.budget, ws.steps[:, 2:], ws.pos, ws.first)
         ids = genes[..., 0] if tables is None else genes[..., 0] + 32 * tables[:, None]
         if self.sequence:
             heads = self._sequence_moves(ids, tables, still, ws)
