@@ -29,6 +29,7 @@ import serial
 
 from pac_host.errors import PacError
 from pac_host.stamp_image import ADDRESS_FLAG, BLOCK_SIZE, PACKET_SIZE, StampImage
+from pac_protocol.frame import HEADER, SYNC
 
 ID_BYTES = b"BS2"
 VERSION_REQUEST = 0x00
@@ -107,10 +108,20 @@ class StampLoader:
             buf += self.port.read(n - len(buf))
         return bytes(buf)
 
-    def _send_echoed(self, data: bytes, what: str) -> None:
+    def _send_echoed(self, data: bytes, what: str, skip_frames: bool = False) -> None:
+        """Send and check the programming port's echo. ``skip_frames``: first drop whole
+        protocol frames the running firmware sent before it saw ``data`` (no reset line)."""
         self.port.write(data)
         self.port.flush()
-        echo = self._read(len(data), self.answer_timeout + len(data) * 0.002)
+        timeout = self.answer_timeout + len(data) * 0.002
+        echo = self._read(len(data), timeout)
+        while skip_frames and echo[:1] == SYNC[:1] and echo != data:
+            head = echo + self._read(HEADER - len(echo), timeout)
+            if head[:2] != SYNC or len(head) < HEADER:
+                echo = head
+                break
+            self._read(head[2] + 1, timeout)  # the rest of the frame: payload and check
+            echo = self._read(len(data), timeout)
         if not echo:
             raise NoStampError(
                 f"no BASIC Stamp on {self._name}: {what} was not echoed within "
@@ -148,11 +159,16 @@ class StampLoader:
         port.reset_input_buffer()
         return has_line
 
-    def identify(self) -> int:
-        """The identification exchange; returns the interpreter version byte."""
+    def identify(self, reset_line: bool = True) -> int:
+        """The identification exchange; returns the interpreter version byte.
+
+        Without a reset line (``reset`` returned False: a pseudo-terminal) the firmware runs
+        until the first identification byte reaches it, so frames it sent just before may
+        precede that byte's echo: they are skipped, whole frames only.
+        """
         for b in ID_BYTES:
             what = f"identification byte {chr(b)!r} (0x{b:02X})"
-            self._send_echoed(bytes([b]), what)
+            self._send_echoed(bytes([b]), what, skip_frames=not reset_line and b == ID_BYTES[0])
             got = self._answer(self.answer_timeout)
             want = id_answer(b)
             if got is None:
@@ -204,7 +220,7 @@ class StampLoader:
         self.progress("reset", 0, len(packets))
         line = self.reset()
         self.progress("identify", 0, len(packets))
-        version = self.identify()
+        version = self.identify(line)
         for i, p in enumerate(packets):
             self.send_packet(i, len(packets), p)
             self.progress("packet", i + 1, len(packets))

@@ -17,9 +17,12 @@ from pac_sim.stamp_download import DownloadFaults, StampDownload
 
 
 class FakeStamp:
-    def __init__(self, faults: DownloadFaults | None = None, mode: str = "bs2") -> None:
-        """``mode``: "bs2" answers the download; "echo" only echoes; "silent" says nothing."""
-        self.mode = mode
+    def __init__(self, faults: DownloadFaults | None = None, mode: str = "bs2",
+                 before: bytes = b"") -> None:
+        """``mode``: "bs2" answers the download; "echo" only echoes; "silent" says nothing.
+        ``before``: bytes a still-running program sent just before the host's first byte
+        reached it (with no reset line, the firmware runs until the download begins)."""
+        self.mode, self.before = mode, before
         self.download = StampDownload(faults=faults or DownloadFaults())
         self.master, self._slave = os.openpty()
         tty.setraw(self._slave, termios.TCSANOW)
@@ -43,6 +46,7 @@ class FakeStamp:
             if self.mode == "silent":
                 continue
             out = data if self.mode == "echo" else self.download.feed(data)
+            out, self.before = self.before + out, b""
             self.to_host += out
             os.write(self.master, out)
 

@@ -11,11 +11,13 @@ from fw_fake_stamp import FakeStamp
 
 from pac_host.stamp_image import image_from_json
 from pac_host.stamp_loader import (
+    FlashError,
     NoStampError,
     PacketNotAcknowledged,
     StampLoader,
     WrongModuleError,
 )
+from pac_protocol.messages import Ready, State
 from pac_sim.stamp_download import DownloadFaults
 
 
@@ -54,6 +56,20 @@ def test_download_is_byte_exact_with_the_documented_protocol(image):
     assert events[0][0] == "reset" and events[-1] == ("done", n, n)
     counts = [e[1] for e in events if e[0] == "packet"]
     assert counts == list(range(1, len(image.packets) + 1))
+
+
+def test_frames_the_firmware_sent_before_the_download_are_skipped(image):
+    # no reset line on a pty: the running firmware's READY can precede the echo of 'B'
+    ready = Ready(State.IDLE).encode(0)
+    with FakeStamp(before=ready + ready) as fake:
+        report = flash_into(fake, image)
+        assert fake.download.finished and bytes(fake.to_host).startswith(ready + ready + b"B")
+    assert report.packets == len(image.packets)
+
+
+def test_bytes_before_the_echo_that_are_no_whole_frame_are_a_damaged_line(image):
+    with FakeStamp(before=b"\xa5\x00") as fake, pytest.raises(FlashError, match="echo .* differs"):
+        flash_into(fake, image)
 
 
 def test_silent_port_is_no_stamp(image):
