@@ -134,8 +134,9 @@ def tokenizer_script(source: Path) -> Path:
     )
 
 
-def image_from_source(source: Path, node: str = "node", timeout: float = 120.0) -> StampImage:
-    """Tokenize PBASIC ``source`` with Parallax's tokenizer (Node.js) into an image."""
+def tokenize(source: Path, out_dir: Path, node: str = "node", timeout: float = 120.0) -> Path:
+    """Tokenize PBASIC ``source`` with Parallax's tokenizer (Node.js) into ``out_dir``; returns
+    the path of the tokenizer's JSON (the packets, the EEPROM map and its flags)."""
     if not source.is_file():
         raise InputError(f"firmware source {source} does not exist")
     script = tokenizer_script(source)
@@ -146,18 +147,23 @@ def image_from_source(source: Path, node: str = "node", timeout: float = 120.0) 
         )
     if shutil.which(node) is None:
         raise InputError(f"cannot tokenize {source}: Node.js ({node}) is not installed")
+    try:
+        res = subprocess.run(
+            [node, str(script), str(source), "--out", str(out_dir), "--quiet"],
+            capture_output=True, text=True, timeout=timeout, check=False,
+        )
+    except subprocess.TimeoutExpired:
+        raise InputError(f"tokenizing {source} took over {timeout:.0f} s") from None
+    if res.returncode != 0:
+        lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+        raise TokenizeError(" | ".join(ln.strip() for ln in lines) or "tokenizer failed")
+    return Path(out_dir) / (source.stem + ".json")
+
+
+def image_from_source(source: Path, node: str = "node", timeout: float = 120.0) -> StampImage:
+    """Tokenize PBASIC ``source`` with Parallax's tokenizer (Node.js) into an image."""
     with tempfile.TemporaryDirectory(prefix="pac-fw-") as out:
-        try:
-            res = subprocess.run(
-                [node, str(script), str(source), "--out", out, "--quiet"],
-                capture_output=True, text=True, timeout=timeout, check=False,
-            )
-        except subprocess.TimeoutExpired:
-            raise InputError(f"tokenizing {source} took over {timeout:.0f} s") from None
-        if res.returncode != 0:
-            lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-            raise TokenizeError(" | ".join(ln.strip() for ln in lines) or "tokenizer failed")
-        img = image_from_json(Path(out) / (source.stem + ".json"))
+        img = image_from_json(tokenize(source, Path(out), node, timeout))
     return StampImage(img.packets, str(source), img.resources)
 
 

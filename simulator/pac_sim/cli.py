@@ -80,6 +80,24 @@ def build_config(**o: object) -> SimConfig:
     )
 
 
+def _report_downloads(stamp: object, seen: int) -> int:
+    """One line on stderr for each download session that ended since the last call."""
+    sessions = stamp.downloads
+    for dl in sessions[seen:]:
+        if dl.finished:
+            version = dl.firmware_version
+            what = ("the ServoBot firmware " + str(version) if version is not None
+                    else "a program other than the ServoBot firmware")
+            line = f"flashed {dl.packets} packets: {what}"
+        elif dl.packets:
+            line = f"download abandoned after {dl.packets} packets"
+        else:
+            line = f"download refused: {dl.failed or 'the host went quiet'}"
+        note = getattr(stamp, "flash_note", None)
+        click.echo(f"pac-sim: {line}" + (f"; {note}" if note else ""), err=True)
+    return len(sessions)
+
+
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @table_option("shifted", "The robot's true gait table: measured, shifted or a table file.")
 @effect_option()
@@ -203,9 +221,10 @@ def main(link_path: str | None, **opts: object) -> None:
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     sim.start()
+    seen = 0
     try:
         while not done.wait(0.1) and sim.error is None:
-            pass
+            seen = _report_downloads(sim.stamp, seen)
     except KeyboardInterrupt:
         pass
     finally:

@@ -6,23 +6,31 @@ either one into the same pty line (faults, echo, pacing floors), EEPROM file, wo
 The program runs in Stamp time through :func:`pac_sim.pbasic.hostlink.serve`; after every slice
 of Stamp time the servo trace is counted into gait cycles (:mod:`pac_sim.thrust`) and each one
 moves the world by the table row its thrust selects, not by the id the firmware meant.
+
+Being flashed: the download is served by :mod:`pac_sim.stamp_download`, as in the model. The
+interpreter runs PBASIC source, not tokens, so what was flashed runs only if it is the
+program of the firmware's source as it now reads (tokenized again to compare, so an edited and
+rebuilt source is picked up): then the Stamp restarts on the recompiled source with the
+flashed EEPROM. Any other program, or a download cut short, leaves a Stamp that answers
+nothing until the next flash, and :attr:`FirmwareEmulator.flash_note` says why.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import tempfile
 import threading
 from collections import deque
 from pathlib import Path
 
 from pac_host.errors import InputError, PacError
-from pac_host.stamp_image import TURN_CYCLE_ADDR, TURN_CYCLE_SIZE
+from pac_host.stamp_image import TURN_CYCLE_ADDR, TURN_CYCLE_SIZE, tokenize
 from pac_protocol.decoder import FrameDecoder
 from pac_protocol.messages import Cmd
 from pac_protocol.timing import T_IDLE_S
 from pac_sim.eeprom import Eeprom
-from pac_sim.line import PtyLine, Shutdown
+from pac_sim.line import DownloadStart, PtyLine, Shutdown
 from pac_sim.pbasic import (
     ENDED,
     SERIN,
@@ -34,6 +42,7 @@ from pac_sim.pbasic import (
 )
 from pac_sim.pbasic.hostlink import serve
 from pac_sim.pbasic.image import read_image
+from pac_sim.stamp_download import StampDownload, serve_download
 from pac_sim.thrust import ServoMap, ThrustCounter, WalkedCycle, walked_gait
 from pac_sim.world import World
 
@@ -75,8 +84,14 @@ class MirroredEeprom(peripherals.Eeprom):
     """The Stamp's 2 KB EEPROM, its turn-cycle bytes written through to the emulator's
     :class:`Eeprom` (so ``--eeprom`` persistence and the write count are the model's code)."""
 
-    def __init__(self, inner: peripherals.Eeprom, turn_cycle: Eeprom) -> None:
+    def __init__(self, inner: peripherals.Eeprom, turn_cycle: Eeprom,
+                 flashed: bytes | None = None) -> None:
+        """``flashed``: a download's EEPROM, whose turn-cycle bytes replace the stored ones."""
         self.mem, self.writes, self.turn_cycle = inner.mem, inner.writes, turn_cycle
+        if flashed is not None:
+            for a in range(TURN_CYCLE_SIZE):
+                if turn_cycle.image[a] != flashed[TURN_CYCLE_ADDR + a]:
+                    turn_cycle.write(a, flashed[TURN_CYCLE_ADDR + a])
         self.mem[TURN_CYCLE_ADDR : TURN_CYCLE_ADDR + TURN_CYCLE_SIZE] = turn_cycle.image
 
     def write(self, addr: int, value: int) -> None:
@@ -96,7 +111,7 @@ class _Wire:
         self.line.deliver(data)
 
     def read(self, timeout_s: float) -> bytes:
-        return self.line.receive(timeout_s)
+        return self.line.receive(timeout_s, downloads=True)  # a download resets the Stamp
 
 
 class FirmwareEmulator:
@@ -122,14 +137,16 @@ class FirmwareEmulator:
     ) -> None:
         self.line, self.eeprom, self.world = line, eeprom, world
         self.source = str(source)
-        self.stamp = load_firmware(source, image)
+        self.stamp: Stamp | None = load_firmware(source, image)
         check_listens(load_firmware(source, image))
         self.servo = ServoMap.from_constants(self.stamp.program.symbols.con_value, self.source)
+        self.flash_note: str | None = None  # why the Stamp runs nothing after the last flash
+        self._eeprom_after_flash = bytes(peripherals.EEPROM_SIZE)
         self.reset_after, self.mute_after = reset_after, mute_after
         self.boots = 0  # BOOT frames the program sent
         self.cycles_total = 0  # gait cycles walked since the emulator started, across resets
         self.executed: list[tuple[int, int]] = []  # (cmd, seq) of each LOAD/RUN/STEP acted on
-        self.downloads: list = []  # downloads are not served with a firmware (README)
+        self.downloads: list[StampDownload] = []  # every download session, in order
         self.walked: deque[WalkedCycle] = deque(maxlen=WALKED_KEPT)
         self.inexact = 0  # gait cycles whose thrust matched no table row exactly
         self.error: PacError | None = None
@@ -149,21 +166,84 @@ class FirmwareEmulator:
     def run(self) -> None:
         """Serve the program on the line; returns when the line is stopped or the program fails
         (then :attr:`error` says why)."""
-        s = self.stamp
-        s.eeprom = MirroredEeprom(s.eeprom, self.eeprom)
+        if self.stamp is not None and not isinstance(self.stamp.eeprom, MirroredEeprom):
+            self.stamp.eeprom = MirroredEeprom(self.stamp.eeprom, self.eeprom)  # as stored now
+        while True:
+            try:
+                if self.stamp is None:
+                    self._silent()
+                    continue
+                s = self.stamp
+                state = serve(s, _Wire(self.line), pin=HOST_PIN, factor=self.line.factor,
+                              floor_s=self._floor, echo=False, keep_output=False,
+                              on_chunk=self._on_chunk)
+            except DownloadStart as d:
+                self._flashed(serve_download(self.line, d.data, self._eeprom_now()))
+                continue
+            except Shutdown:
+                return
+            except PacError as e:
+                self.error = e
+                return
+            if state == ENDED:
+                self.error = StampNotListening(
+                    f"{self.source}:{s.line_at()}: the Stamp is not listening: the program "
+                    f"reached {s.halted_by} at {s.now_s:.3f} s of Stamp time")
+            return
+
+    def _silent(self) -> None:
+        """A Stamp holding a program the interpreter cannot run: nothing answers, until the
+        next download (which raises :class:`DownloadStart`)."""
+        while True:
+            self.line.receive(T_IDLE_S, downloads=True)
+
+    # ---- being flashed ------------------------------------------------------------------------
+
+    def _eeprom_now(self) -> bytes:
+        if self.stamp is not None:
+            return bytes(self.stamp.eeprom.mem)
+        return self._eeprom_after_flash
+
+    def _flashed(self, dl: StampDownload) -> None:
+        """After a download: restart on the source if its program is what was flashed. The
+        session is listed in :attr:`downloads` once :attr:`flash_note` tells its outcome."""
+        self._eeprom_after_flash = dl.eeprom
         try:
-            state = serve(s, _Wire(self.line), pin=HOST_PIN, factor=self.line.factor,
-                          floor_s=self._floor, echo=False, keep_output=False,
-                          on_chunk=self._on_chunk)
-        except Shutdown:
+            self._boot_flashed(dl)
+        finally:
+            self.downloads.append(dl)
+
+    def _boot_flashed(self, dl: StampDownload) -> None:
+        if not dl.finished and not dl.packets:
+            if self.stamp is not None:  # identification failed: the old program starts again
+                self._restart(self.stamp)
             return
+        self.stamp, self.flash_note = None, None
+        if not dl.finished:
+            self.flash_note = (f"the download ended after {dl.packets} packets: the Stamp holds "
+                               "no whole program")
+            return
+        try:
+            with tempfile.TemporaryDirectory(prefix="pac-sim-fw-") as d:
+                image = read_image(tokenize(Path(self.source), Path(d)))
         except PacError as e:
-            self.error = e
+            self.flash_note = f"cannot tell what was flashed: {e}"
             return
-        if state == ENDED:
-            self.error = StampNotListening(
-                f"{self.source}:{s.line_at()}: the Stamp is not listening: the program reached "
-                f"{s.halted_by} at {s.now_s:.3f} s of Stamp time")
+        start = image["program_start"] or 0
+        if dl.eeprom[start:] != image["eeprom_image"][start:]:
+            self.flash_note = (f"the flashed program is not {self.source}'s: pac-sim runs only "
+                               "that source, so the Stamp answers nothing")
+            return
+        try:
+            stamp = Stamp.from_file(self.source, eeprom_image=dl.eeprom, program_start=start)
+            self.servo = ServoMap.from_constants(stamp.program.symbols.con_value, self.source)
+        except PacError as e:
+            self.flash_note = f"cannot run {self.source}: {e}"
+            return
+        stamp.eeprom = MirroredEeprom(stamp.eeprom, self.eeprom, dl.eeprom)
+        self._counter = ThrustCounter(self.servo)
+        self._restart(stamp)
+        self.stamp = stamp
 
     def reset(self) -> None:
         """Press the reset button: takes effect after the Stamp's current slice of time."""

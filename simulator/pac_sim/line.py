@@ -177,10 +177,11 @@ class PtyLine:
         self.sent += len(data)
         self._write(data)
 
-    def receive(self, timeout: float) -> bytes:
+    def receive(self, timeout: float, downloads: bool = False) -> bytes:
         """Bytes from the host within ``timeout``: echoed if pin 16, damaged by the line's
-        faults, never taken for a download (for a driver that runs a program's own SERIN)."""
-        return self._read(timeout, downloads=False)
+        faults (for a driver that runs a program's own SERIN). With ``downloads``, the start of
+        a download raises :class:`DownloadStart`, as in :meth:`serin`."""
+        return self._read(timeout, downloads=downloads)
 
     def mute(self) -> None:
         """From now on nothing the Stamp sends reaches the host (a pulled cable, a dead
