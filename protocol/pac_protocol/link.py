@@ -43,7 +43,7 @@ from pac_protocol.messages import (
     reply_cmd,
 )
 
-READY_TIMEOUT_S = 2.0  # T_IDLE + one gait cycle + margin
+READY_TIMEOUT_S = 2.0  # T_IDLE + the longest gait cycle (1.31 s, firmware) + margin
 REPLY_TIMEOUT_S = 0.3
 ATTEMPTS = 4
 QUIET_S = 0.05  # a partial frame older than this is abandoned (PROTOCOL.md 6)
