@@ -140,6 +140,8 @@ def _loop_positions(loop_len: np.ndarray, budget: int, out: np.ndarray) -> None:
         return
     table = _positions.get(budget)
     if table is None:
+        if len(_positions) >= 4:  # a budget sweep must not keep a table per budget
+            _positions.clear()
         lengths = np.maximum(np.arange(top + 1), 1)[:, None]
         table = _positions[budget] = np.arange(budget) % lengths
     np.take(table, loop_len, axis=0, out=out, mode="clip")
