@@ -61,6 +61,20 @@ def test_expand_loops_and_skips_zero_repetitions():
     assert still[0]
 
 
+@pytest.mark.parametrize("budget", [0, 1, 200, 1100])  # looked up, and computed past 1024
+def test_expand_matches_the_loop_written_out(budget):
+    rng = np.random.default_rng(6)
+    genes = _random_genes(rng, 40)
+    genes[:20, :, 1] %= 4  # short loops, wrapping many times
+    genes[3, :, 1] = 0
+    ids, still = expand(genes, budget)
+    for g, row, s in zip(genes, ids, still, strict=True):
+        loop = [int(i) for i, r in g for _ in range(r)]
+        assert s == (not loop)
+        want = [loop[t % len(loop)] for t in range(budget)] if loop else [0] * budget
+        assert row.tolist() == want
+
+
 def test_simulated_path_is_the_model_rollout():
     genes = parse_turn_cycle("12:14,3:10,12:3,19:10")
     cov = simulate(M, genes, 120, keep_paths=True)
