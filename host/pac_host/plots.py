@@ -15,8 +15,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 METHOD_TITLES = {
     "full": "PAL without partial recombination (full)",
     "partial": "PAL with partial recombination",
+    "oracle": "control: the CGA on the actual robot's own table",
 }
-METHOD_COLOURS = {"full": "tab:red", "partial": "tab:blue"}
+METHOD_COLOURS = {"full": "tab:red", "partial": "tab:blue", "oracle": "tab:gray"}
 
 
 def coverage_per_seed(summary: dict, method: str, path: Path) -> Path:
@@ -38,8 +39,9 @@ def mean_coverage(summary: dict, path: Path) -> Path:
     comp = summary["comparison"]["methods"]
     for method, m in comp.items():
         gens = next(r["generations"] for r in summary["runs"] if r["method"] == method)
+        name = "oracle (perfect model)" if method == "oracle" else method
         ax.plot(gens, m["mean_coverage"], lw=2, color=METHOD_COLOURS.get(method),
-                label=f"{method}: {m['reached_optimum']}/{m['seeds']} reached the optimum")
+                label=f"{name}: {m['reached_optimum']}/{m['seeds']} reached the optimum")
     _decorate(ax, summary, "Mean operational coverage over seeds")
     ax.legend(fontsize=8, loc="lower right")
     return _save(fig, path)

@@ -29,21 +29,68 @@ def test_experiment_writes_summary_log_and_plots(finished):
     out, text = finished
     summary = json.loads((out / "summary.json").read_text())
     assert summary["format"] == "pac-experiment/1"
-    assert len(summary["runs"]) == 4
+    assert len(summary["runs"]) == 6  # 2 seeds x full, partial and the oracle control
     for r in summary["runs"]:
         assert r["generations"] == [0, 40, 80]
         assert len(r["coverage"]) == 3 and all(c <= summary["optimum"] for c in r["coverage"])
         assert len(r["final_model_error"]) == 32
         assert r["reached_optimum_at"] is None or r["reached_optimum_at"] in r["generations"]
     comp = summary["comparison"]
-    assert set(comp["methods"]) == {"full", "partial"}
+    assert set(comp["methods"]) == {"full", "partial", "oracle"}
     assert 0 <= comp["tests"]["reached_optimum_fisher_exact_p"] <= 1
     lines = (out / "log.jsonl").read_text().splitlines()
-    assert len(lines) == 12  # 2 seeds x 2 methods x 3 punctuations
-    assert {json.loads(x)["method"] for x in lines} == {"full", "partial"}
-    for name in ("coverage_full.png", "coverage_partial.png", "coverage_means.png"):
+    assert len(lines) == 18  # 2 seeds x 3 methods x 3 punctuations
+    assert {json.loads(x)["method"] for x in lines} == {"full", "partial", "oracle"}
+    for name in ("coverage_full.png", "coverage_partial.png", "coverage_oracle.png",
+                 "coverage_means.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "seeds reached the optimum" in text and "summary:" in text
+
+
+def test_optimum_is_the_best_known_on_the_actual_robot(finished):
+    out, _ = finished
+    summary = json.loads((out / "summary.json").read_text())
+    opt = json.loads((out / "optimum.json").read_text())
+    best_seen = max(max(r["coverage"]) for r in summary["runs"])
+    assert opt["observed"] == best_seen
+    assert opt["searched"] == max(r["fitness"] for r in opt["runs"]) and len(opt["runs"]) == 2
+    assert summary["optimum"] == opt["fitness"] == max(opt["searched"], best_seen)
+
+
+def test_oracle_control_runs_the_cga_on_the_actual_table(finished, tmp_path):
+    out, text = finished
+    res = _run(["experiment", *SMALL, "--methods", "full,partial", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((out / "summary.json").read_text())
+    without = json.loads((tmp_path / "summary.json").read_text())
+
+    def runs(s):
+        return [{k: v for k, v in r.items() if k != "reached_optimum_at"}
+                for r in s["runs"] if r["method"] != "oracle"]
+
+    # the control changes nothing for the two methods, and is compared on the same seeds
+    assert runs(summary) == runs(without)
+    assert (summary["comparison"]["tests"]["final_coverage_wilcoxon"]
+            == without["comparison"]["tests"]["final_coverage_wilcoxon"])
+    comp = summary["comparison"]["methods"]
+    oracle_final = {r["seed"]: r["coverage"][-1] for r in summary["runs"]
+                    if r["method"] == "oracle"}
+    for m in ("full", "partial"):
+        finals = {r["seed"]: r["coverage"][-1] for r in summary["runs"] if r["method"] == m}
+        assert comp[m]["matched_oracle"] == sum(finals[s] >= oracle_final[s] for s in finals)
+    assert "matched_oracle" not in comp["oracle"] and "oracle" not in without["comparison"]
+    recs = [json.loads(x) for x in (out / "log.jsonl").read_text().splitlines()]
+    oracle = [r for r in recs if r["method"] == "oracle"]
+    assert len(oracle) == 6
+    for r in oracle:  # a perfect model: every test's figures predicted exactly
+        assert [p["blocks_covered"] for p in r["predicted"]] == [
+            o["blocks_covered"] for o in r["observed"]]
+        assert [p["fitness"] for p in r["predicted"]] == [o["fitness"] for o in r["observed"]]
+        assert all(e["F"] == e["T"] == e["dH"] == 0 for e in r["model_error"])
+    assert any(p != {k: o[k] for k in p}  # the measured model, by contrast, is wrong
+               for r in recs if r["method"] == "partial"
+               for p, o in zip(r["predicted"], r["observed"], strict=True))
+    assert "  oracle: " in text and "as good as the oracle on" in text
 
 
 def test_jobs_do_not_change_results(finished, tmp_path):
@@ -83,6 +130,7 @@ def test_interrupted_experiment_resumes_to_the_same_summary(finished, tmp_path):
     (["table", "show", "--table", "shiftd"], "shiftd: cannot read"),
     (["experiment", "--seeds", "0", "--out", "x"], "--seeds must be at least 1"),
     (["experiment", "--methods", "full,half", "--out", "x"], "--methods takes full"),
+    (["experiment", "--methods", "oracle,oracle", "--out", "x"], "(each once)"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, message):
     res = CliRunner().invoke(main, args)
