@@ -216,8 +216,9 @@ class FirmwareEmulator:
     def _boot_flashed(self, dl: StampDownload) -> None:
         if not dl.finished and not dl.packets:
             if self.stamp is not None:  # identification failed: the old program starts again
+                self.flash_note = None
                 self._restart(self.stamp)
-            return
+            return  # (a silent Stamp stays silent, for the reason already noted)
         self.stamp, self.flash_note = None, None
         if not dl.finished:
             self.flash_note = (f"the download ended after {dl.packets} packets: the Stamp holds "
