@@ -53,10 +53,14 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                    optimum_runs, optimum_generations, resume) -> None:
     """Run PAL from N starting populations with each recombination method.
 
+    Each seed's starting population also runs the control "oracle": the same CGA on the actual
+    robot's own table, the ceiling for a co-evolved model.
+
     Writes OUT/summary.json (per method and seed: operational coverage on the actual robot at
     each punctuation, the generation the optimum was first reached, the final model error per
-    gait cycle; the comparison with exact tests over seeds), OUT/log.jsonl (one line per
-    punctuation, appended as it happens), OUT/optimum.json and PNG plots.
+    gait cycle; the comparison with exact tests over seeds, between the methods and against the
+    oracle), OUT/log.jsonl (one line per punctuation, appended as it happens),
+    OUT/optimum.json (the best known fitness on the actual robot) and PNG plots.
 
     Example: pac-host experiment --seeds 30 --generations 1000 --jobs 2 --out out/paper
     """
