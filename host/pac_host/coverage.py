@@ -35,6 +35,7 @@ from pac_host.model.kinematics import (
     accumulate_headings,
     complex_moves,
     heading_rotation,
+    integrate_path,
     scan_moves,
 )
 
@@ -374,6 +375,7 @@ class _Runner:
                  start: np.ndarray, keep: bool) -> None:
         self.rows, self.budget, self.effects, self.keep = rows, budget, effects, keep
         self.sequence = has_sequence_effects(effects)
+        self.start = start
         self.q0 = heading_rotation(start[2])
         self.p0 = start[0] + 1j * start[1]
         self.h0 = start[2]
@@ -392,10 +394,10 @@ class _Runner:
         n = genes.shape[0]
         ws = _workspace((n, self.budget))
         still = _step_entries(genes, self.budget, ws.steps[:, 2:], ws.pos, ws.first)
-        ids = genes[..., 0] if tables is None else genes[..., 0] + 32 * tables[:, None]
         if self.sequence:
-            heads = self._sequence_moves(ids, tables, still, ws)
+            heads = self._sequence_moves(genes[..., 0], tables, still, ws)
         else:
+            ids = genes[..., 0] if tables is None else genes[..., 0] + 32 * tables[:, None]
             heads = self._table_moves(ids.ravel(), still, ws)
         q = ws.q[:, 1:]
         _detect(ws.p.real, ws.p.imag, q.imag, q.real, ws)
@@ -423,20 +425,13 @@ class _Runner:
     def _sequence_moves(self, ids: np.ndarray, tables: np.ndarray | None, still: np.ndarray,
                         ws: _Workspace) -> np.ndarray | None:
         """Moves that depend on what ran before (e.g. a transition cost): per step."""
-        flat = np.concatenate((np.zeros(_FIRST_GENE, dtype=ids.dtype), ids.ravel() % 32))
+        flat = np.concatenate((np.zeros(_FIRST_GENE, dtype=ids.dtype), ids.ravel()))
         steps = flat[ws.steps[:, 2:]]
         rows = self.rows if tables is None else self.rows[tables]
         body, world = step_moves(rows, steps, self.effects)
         body = np.array(body)
         body[still] = 0.0
-        cm = complex_moves(body)
-        ws.q[:, 0], ws.q[:, 1] = 1.0, self.q0
-        ws.q[:, 2:] = cm[..., 1]
-        ws.p[:, 0] = self.p0
-        ws.p[:, 1:] = cm[..., 0]
-        drift = None
         if world is not None:
-            drift = np.array(world[..., 0] + 1j * world[..., 1])
-            drift[still] = 0.0
-        scan_moves(ws.q, ws.p, drift)
-        return accumulate_headings(self.h0, body[..., 2]) if self.keep else None
+            world = np.array(world)
+            world[still] = 0.0
+        return integrate_path(self.start, body, world, self.keep, (ws.q, ws.p)).h

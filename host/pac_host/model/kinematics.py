@@ -77,18 +77,21 @@ def integrate_path(
     body: np.ndarray,
     world: np.ndarray | None = None,
     headings: bool = True,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Path:
     """Integrate body-frame moves (..., n, 3) from a start pose (..., 3) into a :class:`Path`.
 
-    ``world`` (..., n, 2) is an optional world-frame drift added after each move.
+    ``world`` (..., n, 2) is an optional world-frame drift added after each move. ``out`` may
+    give the two complex arrays :func:`scan_moves` works in, (..., n + 2) and (..., n + 1), so
+    a hot loop need not allocate them each call.
     """
     start_pose = np.asarray(start_pose, dtype=np.float64)
     body = np.asarray(body, dtype=np.float64)
     cmoves = complex_moves(body)
     n = cmoves.shape[-2]
     lead = np.broadcast_shapes(start_pose.shape[:-1], cmoves.shape[:-2])
-    q = np.empty(lead + (n + 2,), dtype=np.complex128)
-    p = np.empty(lead + (n + 1,), dtype=np.complex128)
+    q, p = out if out is not None else (np.empty(lead + (n + 2,), dtype=np.complex128),
+                                        np.empty(lead + (n + 1,), dtype=np.complex128))
     q[..., 0] = 1.0
     q[..., 1] = heading_rotation(start_pose[..., 2])
     q[..., 2:] = cmoves[..., 1]
