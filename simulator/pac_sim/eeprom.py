@@ -12,6 +12,7 @@ import threading
 from pathlib import Path
 
 from pac_host.errors import InputError
+from pac_host.stamp_image import TURN_CYCLE_ADDR
 from pac_protocol.messages import MAX_GENES
 
 FORMAT = "pac-sim-eeprom/1"
@@ -65,6 +66,13 @@ class Eeprom:
             self.image[addr] = value
             self.writes += 1
             self._save()
+
+    def write_flashed(self, eeprom: bytes) -> None:
+        """Take the turn-cycle bytes of a downloaded 2 KB EEPROM image, writing only the bytes
+        that differ (a flash rewrites the turn cycle the robot stored)."""
+        for addr, b in enumerate(eeprom[TURN_CYCLE_ADDR : TURN_CYCLE_ADDR + len(self.image)]):
+            if self.image[addr] != b:
+                self.write(addr, b)
 
     def write_count(self, n: int) -> None:
         self.write(0, n)

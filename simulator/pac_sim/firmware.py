@@ -89,9 +89,7 @@ class MirroredEeprom(peripherals.Eeprom):
         """``flashed``: a download's EEPROM, whose turn-cycle bytes replace the stored ones."""
         self.mem, self.writes, self.turn_cycle = inner.mem, inner.writes, turn_cycle
         if flashed is not None:
-            for a in range(TURN_CYCLE_SIZE):
-                if turn_cycle.image[a] != flashed[TURN_CYCLE_ADDR + a]:
-                    turn_cycle.write(a, flashed[TURN_CYCLE_ADDR + a])
+            turn_cycle.write_flashed(flashed)
         self.mem[TURN_CYCLE_ADDR : TURN_CYCLE_ADDR + TURN_CYCLE_SIZE] = turn_cycle.image
 
     def write(self, addr: int, value: int) -> None:
@@ -141,7 +139,6 @@ class FirmwareEmulator:
         check_listens(load_firmware(source, image))
         self.servo = ServoMap.from_constants(self.stamp.program.symbols.con_value, self.source)
         self.flash_note: str | None = None  # why the Stamp runs nothing after the last flash
-        self._eeprom_after_flash = bytes(peripherals.EEPROM_SIZE)
         self.reset_after, self.mute_after = reset_after, mute_after
         self.boots = 0  # BOOT frames the program sent
         self.cycles_total = 0  # gait cycles walked since the emulator started, across resets
@@ -200,14 +197,15 @@ class FirmwareEmulator:
     # ---- being flashed ------------------------------------------------------------------------
 
     def _eeprom_now(self) -> bytes:
+        """What the EEPROM holds: the running program's, or (a silent Stamp runs nothing only
+        after a download) what the last download left."""
         if self.stamp is not None:
             return bytes(self.stamp.eeprom.mem)
-        return self._eeprom_after_flash
+        return self.downloads[-1].eeprom
 
     def _flashed(self, dl: StampDownload) -> None:
         """After a download: restart on the source if its program is what was flashed. The
         session is listed in :attr:`downloads` once :attr:`flash_note` tells its outcome."""
-        self._eeprom_after_flash = dl.eeprom
         try:
             self._boot_flashed(dl)
         finally:

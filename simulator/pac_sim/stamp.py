@@ -12,7 +12,6 @@ from collections.abc import Iterator
 from itertools import cycle, repeat
 from typing import Protocol
 
-from pac_host.stamp_image import TURN_CYCLE_ADDR, TURN_CYCLE_SIZE
 from pac_protocol.frame import REQUEST_PAYLOAD, check_value
 from pac_protocol.messages import (
     ACKS,
@@ -131,10 +130,7 @@ class StampEmulator:
         version = dl.firmware_version if dl.finished else None
         self.firmware_version = version
         if version is not None:
-            image = dl.eeprom[TURN_CYCLE_ADDR : TURN_CYCLE_ADDR + TURN_CYCLE_SIZE]
-            for addr, b in enumerate(image):
-                if self.eeprom.image[addr] != b:
-                    self.eeprom.write(addr, b)
+            self.eeprom.write_flashed(dl.eeprom)
 
     def _foreign(self) -> None:
         """A program that is not the ServoBot firmware: says nothing, until the next download."""
