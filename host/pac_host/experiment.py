@@ -189,13 +189,13 @@ def compare(results: list[dict], cfg: ExperimentConfig, optimum: int) -> dict:
             if m == "oracle" or not seeds:
                 continue
             finals = [runs[s]["coverage"][-1] for s in seeds]
+            ceilings = [ceiling[s] for s in seeds]
             out["methods"][m]["matched_oracle"] = sum(
-                f >= ceiling[s] for f, s in zip(finals, seeds, strict=True))
+                f >= c for f, c in zip(finals, ceilings, strict=True))
             out["methods"][m]["final_coverage_vs_oracle_wilcoxon"] = stats.wilcoxon_signed_rank(
-                finals, [ceiling[s] for s in seeds])
+                finals, ceilings)
             out["methods"][m]["final_coverage_over_oracle"] = round(
-                float(np.mean(finals)) / max(float(np.mean([ceiling[s] for s in seeds])), 1e-9),
-                4)
+                float(np.mean(finals)) / max(float(np.mean(ceilings)), 1e-9), 4)
     if {"full", "partial"} <= set(cfg.methods):
         f, p = out["methods"]["full"], out["methods"]["partial"]
         seeds = sorted(set(by["full"]) & set(by["partial"]))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -14,6 +15,21 @@ ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"
 SOURCE = FIRMWARE / "servobot.bs2"
 TOKENIZE = FIRMWARE / "tools" / "tokenize.js"
+
+
+def set_version(source: Path, version: int) -> None:
+    """Rewrite the firmware source's FW_VERSION constant in place."""
+    text = re.sub(r"^(FW_VERSION\s+CON\s+)\d+", rf"\g<1>{version}",
+                  source.read_text(encoding="latin-1"), count=1, flags=re.M)
+    source.write_text(text, encoding="latin-1")
+
+
+def source_with_version(directory: Path, version: int) -> Path:
+    """A copy of the firmware in ``directory`` announcing ``version``."""
+    path = directory / "servobot.bs2"
+    path.write_text(SOURCE.read_text(encoding="latin-1"), encoding="latin-1")
+    set_version(path, version)
+    return path
 
 
 @dataclass

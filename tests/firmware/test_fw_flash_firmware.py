@@ -8,7 +8,6 @@ flashed source is picked up), and answers nothing after any other program.
 from __future__ import annotations
 
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -16,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from fw_build import SOURCE, run_tokenizer
+from fw_build import SOURCE, run_tokenizer, set_version, source_with_version
 
 from pac_host.cli.main import main
 from pac_protocol.errors import NoAnswer
@@ -27,18 +26,10 @@ from pac_sim.runner import SimConfig, SimStamp
 BIN = Path(sys.executable).parent
 
 
-def set_version(source: Path, version: int) -> None:
-    text = re.sub(r"^(FW_VERSION\s+CON\s+)\d+", rf"\g<1>{version}",
-                  source.read_text(encoding="latin-1"), count=1, flags=re.M)
-    source.write_text(text, encoding="latin-1")
-
-
 @pytest.fixture
 def firmware_v7(tmp_path):
     """A copy of the firmware announcing version 7, and its tokenized image."""
-    src = tmp_path / "servobot.bs2"
-    src.write_text(SOURCE.read_text(encoding="latin-1"), encoding="latin-1")
-    set_version(src, 7)
+    src = source_with_version(tmp_path, 7)
     built = run_tokenizer(src, tmp_path / "v7")
     assert built.returncode == 0, built.stderr
     return src, built.path

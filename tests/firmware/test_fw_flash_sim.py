@@ -3,12 +3,10 @@ then answers HELLO with the flashed firmware's version; every bad input is one e
 
 from __future__ import annotations
 
-import re
-
 import pytest
 import serial
 from click.testing import CliRunner
-from fw_build import SOURCE, run_tokenizer
+from fw_build import SOURCE, run_tokenizer, source_with_version
 
 from pac_host.cli.main import main
 from pac_host.stamp_image import image_from_json
@@ -18,14 +16,6 @@ from pac_protocol.link import StampLink
 from pac_protocol.port import open_port
 from pac_sim.line import Faults
 from pac_sim.runner import SimConfig, SimStamp
-
-
-def source_with_version(tmp_path, version: int):
-    src = re.sub(r"^(FW_VERSION\s+CON\s+)\d+", rf"\g<1>{version}",
-                 SOURCE.read_text(encoding="latin-1"), count=1, flags=re.M)
-    path = tmp_path / "servobot.bs2"
-    path.write_text(src, encoding="latin-1")
-    return path
 
 
 @pytest.fixture(scope="module")
