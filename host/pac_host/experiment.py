@@ -54,6 +54,8 @@ class ExperimentConfig:
             raise InputError(f"--seeds must be at least 1, got {self.seeds}")
         if self.generations < 0:
             raise InputError(f"--generations must be >= 0, got {self.generations}")
+        if self.optimum_runs < 1:
+            raise InputError(f"--optimum-runs must be at least 1, got {self.optimum_runs}")
         bad = [m for m in self.methods if m not in METHODS]
         if bad or not self.methods or len(set(self.methods)) != len(self.methods):
             raise InputError(f"--methods takes {', '.join(METHODS)} (each once), got "

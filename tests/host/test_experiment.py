@@ -131,6 +131,7 @@ def test_interrupted_experiment_resumes_to_the_same_summary(finished, tmp_path):
     (["experiment", "--seeds", "0", "--out", "x"], "--seeds must be at least 1"),
     (["experiment", "--methods", "full,half", "--out", "x"], "--methods takes full"),
     (["experiment", "--methods", "oracle,oracle", "--out", "x"], "(each once)"),
+    (["experiment", "--optimum-runs", "0", "--out", "x"], "--optimum-runs must be at least 1"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, message):
     res = CliRunner().invoke(main, args)
