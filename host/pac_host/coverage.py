@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pac_host import coverage_jit
 from pac_host.errors import InputError
 from pac_host.model.effects import (
     Effect,
@@ -329,11 +330,15 @@ def simulate(
     effects: Sequence[Effect] = (),
     start_pose: Sequence[float] = START_POSE,
     keep_paths: bool = False,
+    kernel: str = "auto",
 ) -> Coverage:
     """Run turn cycles on gait tables and score the paths.
 
     ``rows`` is one table (32, 3) or M tables (M, 32, 3); ``genes`` is one turn cycle (9, 2) or
     P of them (P, 9, 2). The result's arrays have shape (P,) for one table, (M, P) for M.
+    ``kernel``: ``"numpy"`` (the reference), ``"numba"`` (compiled, the same figures value for
+    value; only for scores without kept paths or sequence effects) or ``"auto"`` (numba where
+    it applies and is installed).
     """
     budget = check_budget(budget)
     rows = np.asarray(rows, dtype=np.float64)
@@ -345,6 +350,14 @@ def simulate(
     n_paths = n_tables * n_genes
     run = _Runner(rows, budget, tuple(effects), np.asarray(start_pose, dtype=np.float64),
                   keep_paths)
+    compiled = not keep_paths and not run.sequence and coverage_jit.AVAILABLE
+    if kernel == "numba" and not compiled:
+        raise ValueError("the numba kernel needs numba, no kept paths and no sequence effects")
+    if compiled and kernel != "numpy":
+        figures = coverage_jit.score_paths(genes, n_tables, run.moves, run.q0, run.p0,
+                                           run.drift, budget)
+        shape = (n_genes,) if rows.ndim == 2 else (n_tables, n_genes)
+        return Coverage(*(f.reshape(shape) for f in figures))
     figures = np.empty((4, n_paths), dtype=np.int64)
     poses = np.empty((n_paths, budget + 1, 3)) if keep_paths else None
     blocks = np.empty((n_paths, budget + 1), dtype=np.int64) if keep_paths else None

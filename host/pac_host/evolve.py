@@ -56,6 +56,11 @@ class EvolveConfig:
     budget: int = 200
     initial_generations: int = 200
     model: str = "measured"
+    # between punctuations: "cga" (interval CGA generations, the paper) or "ils" (anytime: a
+    # budget of search evaluations while the robot walks); runs saved before this existed
+    # were "cga"
+    search: str = "cga"
+    search_evaluations: int = 0
     robot: dict = field(default_factory=dict)  # what played the robot (a resume reuses it)
 
     def check(self) -> None:
@@ -72,13 +77,15 @@ class EvolveConfig:
                 raise InputError(f"--{name.replace('_', '-')} must be >= 1")
         if self.cga_population < 4 or self.model_population < 4:
             raise InputError("populations must hold at least 4")
+        self.pal().check()
 
     def pal(self) -> pal.PALConfig:
         return pal.PALConfig(
             method=self.method, model_fitness=self.model_fitness,
             generations=self.generations, interval=self.interval,
             model_generations=self.model_generations, cga_population=self.cga_population,
-            model_population=self.model_population, budget=self.budget)
+            model_population=self.model_population, budget=self.budget, search=self.search,
+            search_evaluations=self.search_evaluations)
 
 
 class RunInterrupted(PacError):
@@ -209,7 +216,7 @@ def evolve(
         model_before = state.models[0].copy()
         timer = _TimedRobot(robot)
         try:
-            state, rec = pal.punctuate(state, timer, rng, pcfg)
+            state, rec = pal.punctuate(state, timer, rng, pcfg, concurrent=True)
         except PacError as e:
             raise RunInterrupted(
                 f"run {robot.current_run}: {e}. Everything observed is in {d.observations}; "

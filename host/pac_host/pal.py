@@ -21,6 +21,7 @@ simulated actual robot of the paper is :class:`SimulatedRobot`.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
@@ -95,6 +96,9 @@ class SimulatedRobot:
         return results_from_coverage(cov)
 
 
+MAX_SEARCH_EVALUATIONS = 10**9  # per punctuation: about an hour on one core
+
+
 @dataclass(frozen=True)
 class PALConfig:
     """Settings of the PAL loop (DESIGN.md 2.5 and the project's GA defaults)."""
@@ -109,8 +113,21 @@ class PALConfig:
     budget: int = DEFAULT_BUDGET
     perturb_prob: float = 0.25
     perturb_reps: int = 50
+    # Between punctuations: "cga", ``interval`` generations of the CGA after the model GA (the
+    # paper); or "ils", anytime: ``search_evaluations`` coverage evaluations of iterated local
+    # search on the model while the robot walks the tests (pac_host.search.anytime).
+    search: str = "cga"
+    search_evaluations: int = 0
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
+
+    def check(self) -> None:
+        if self.search not in ("cga", "ils"):
+            raise InputError(f"search between punctuations must be cga or ils, got "
+                             f"{self.search!r}")
+        if self.search != "cga" and not 1 <= self.search_evaluations <= MAX_SEARCH_EVALUATIONS:
+            raise InputError(f"--search-evaluations must be 1..{MAX_SEARCH_EVALUATIONS}, got "
+                             f"{self.search_evaluations}")
 
     def cga_config(self) -> cga.CGAConfig:
         return replace(self.cga, population=self.cga_population, budget=self.budget)
@@ -181,17 +198,38 @@ def _number(v) -> int | float:
 
 
 def punctuate(
-    state: PALState, robot: Robot, rng: np.random.Generator, cfg: PALConfig = PALConfig()
+    state: PALState, robot: Robot, rng: np.random.Generator, cfg: PALConfig = PALConfig(),
+    concurrent: bool = False,
 ) -> tuple[PALState, dict]:
     """One punctuation: test on the robot, update the operational solution, evolve the models.
 
-    Returns the new state and a JSON-ready record of what happened.
+    With an anytime search (``cfg.search`` other than "cga") the turn-cycle search on the
+    current model runs during the tests, in a worker thread when ``concurrent`` (the robot's
+    link and observer keep the main thread); it draws from its own generator, split off
+    ``rng`` first, so the result is the same either way. Returns the new state and a
+    JSON-ready record of what happened.
     """
     best = state.cga_pop[0]
     tests = np.concatenate([best[None], perturbations(best, rng, cfg)])
     model_rows = state.models[0]
     predicted = simulate(model_rows, tests, cfg.budget, state.model_effects)
-    results = robot.run_tests(tests)
+    search = None
+    if cfg.search != "cga" and state.generation < cfg.generations:
+        search = _AnytimeSearch(state, np.random.default_rng(rng.integers(2**63)), cfg)
+    if search is not None and concurrent:
+        with ThreadPoolExecutor(1) as pool:
+            job = pool.submit(search)
+            try:
+                results = robot.run_tests(tests)
+            except BaseException:
+                search.cancel()
+                raise
+            finally:
+                job.result()
+    else:
+        results = robot.run_tests(tests)
+        if search is not None:
+            search()
 
     replaced = state.operational_score is None or results[0].score > state.operational_score
     if replaced:
@@ -224,14 +262,51 @@ def punctuate(
         "operational_fitness": int(op_fit),
         "operational_replaced": bool(replaced),
     }
-    new = PALState(state.generation, state.cga_pop, models, state.model_effects, operational,
+    pop = state.cga_pop
+    if search is not None:
+        pop = search.pop
+        record["search"] = search.record
+    new = PALState(state.generation, pop, models, state.model_effects, operational,
                    op_score, op_fit)
     return new, record
 
 
+class _AnytimeSearch:
+    """The search of one punctuation, runnable in a worker thread: a budget of evaluations on
+    the model the tests were chosen on, from the population's best."""
+
+    def __init__(self, state: PALState, rng: np.random.Generator, cfg: PALConfig) -> None:
+        self.state, self.rng, self.cfg = state, rng, cfg
+        self.pop = state.cga_pop
+        self.record: dict = {}
+        self.cancelled = False
+
+    def cancel(self) -> None:
+        """Stop early (the robot's tests failed): the punctuation will be redone."""
+        self.cancelled = True
+
+    def __call__(self) -> None:
+        from pac_host.search import anytime
+
+        self.pop, rec = anytime.advance(
+            self.state.models[0], self.state.cga_pop, self.cfg.search_evaluations, self.rng,
+            self.cfg.budget, self.state.model_effects, self.cfg.search,
+            cancelled=lambda: self.cancelled)
+        self.record = {"method": self.cfg.search, **rec}
+
+
 def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
                 cfg: PALConfig = PALConfig()) -> tuple[PALState, int]:
-    """Run the CGA on the current best model; returns the state and the best model fitness."""
+    """Run the CGA on the current best model; returns the state and the best model fitness.
+
+    With an anytime search the turn cycles were searched during the punctuation's tests: this
+    only ranks them on the model the model GA just made, and counts the generations."""
+    if cfg.search != "cga":
+        fit = cga.fitness(state.models[0], state.cga_pop, cfg.budget, state.model_effects)
+        order = np.argsort(-fit, kind="stable")
+        state = replace(state, cga_pop=state.cga_pop[order],
+                        generation=state.generation + generations)
+        return state, int(fitness_of_score(fit[order[0]]))
     pop, best = cga.evolve(state.models[0], state.cga_pop, generations, rng, cfg.cga_config(),
                            state.model_effects)
     state = replace(state, cga_pop=pop, generation=state.generation + generations)

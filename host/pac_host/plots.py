@@ -135,3 +135,29 @@ def learning_progress(records: list[dict], path: Path, title: str = "Learning pr
     ax.set_title(title)
     ax.grid(alpha=0.3)
     return _save(fig, path)
+
+
+def optimize_progress(curves: list[list[tuple[float, int]]], path: Path,
+                      title: str = "Best fitness found") -> Path:
+    """Best fitness against seconds: one search as a step line; several (e.g. seeds) as their
+    median and range."""
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
+    if len(curves) == 1:
+        t, f = zip(*curves[0], strict=True) if curves[0] else ((), ())
+        ax.step(t, f, where="post", lw=2)
+    elif curves:
+        end = max(c[-1][0] for c in curves if c)
+        grid = np.linspace(0, end, 400)
+        vals = np.array([[max([f for s, f in c if s <= g], default=np.nan) for g in grid]
+                         for c in curves])
+        ax.fill_between(grid, np.nanmin(vals, axis=0), np.nanmax(vals, axis=0), step="post",
+                        alpha=0.3, label=f"range over {len(curves)} seeds")
+        ax.step(grid, np.nanmedian(vals, axis=0), where="post", lw=2, label="median")
+        ax.legend(fontsize=8, loc="lower right")
+    ax.set_xlabel("seconds")
+    ax.set_ylabel("best coverage fitness (3R + c)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)

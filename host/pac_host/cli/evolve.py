@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from pac_host.cli.link_options import ask, confirm, emulator_options, given, link_options
+from pac_host.cli.options import profile_option, profile_pal, search_evaluations_option
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, save_config
 from pac_host.model.table import BUILTIN
@@ -42,9 +43,11 @@ from pac_host.robot.connect import connect
               help="Model GA generations per punctuation.")
 @click.option("--initial-generations", default=200, show_default=True, type=int,
               help="CGA generations on the model before the first test.")
+@profile_option()
+@search_evaluations_option()
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
-               port, observer_spec, placer, **sim) -> None:
+               profile, search_evaluations, port, observer_spec, placer, **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
     Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
@@ -52,6 +55,10 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
     path; the model GA corrects the model; the robot's operational turn cycle is replaced only
     when a new one does better on the robot. A person places a real robot at each start pose
     when asked (press Enter); the built-in emulator is placed through its tracker.
+
+    With the default profile the turn-cycle search runs while the robot walks the tests, with
+    a budget of evaluations per punctuation (the same run on any machine); --profile paper
+    runs INTERVAL generations of the paper's CGA between punctuations instead.
 
     Writes OUT/log.jsonl (a line per punctuation), observations.jsonl (every observation, as
     it happens), runs.jsonl (observed runs, for `pac-host diagnose`), model.json,
@@ -76,7 +83,9 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         raise InputError("--out DIR is required (or --resume DIR)")
     else:
         root = out_dir
+        anytime = profile_pal(profile, search_evaluations)
         cfg = EvolveConfig(seed=seed, method=method, model_fitness=model_fitness,
+                           search=anytime.search, search_evaluations=anytime.search_evaluations,
                            generations=generations, interval=interval,
                            model_generations=model_generations, cga_population=cga_population,
                            model_population=model_population, budget=budget,

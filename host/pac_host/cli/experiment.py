@@ -3,16 +3,21 @@
 from __future__ import annotations
 
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import click
 
-from pac_host.cli.options import effect_option, load_with_effects, progress_enabled
+from pac_host.cli.options import (
+    effect_option,
+    load_with_effects,
+    profile_option,
+    profile_pal,
+    progress_enabled,
+    search_evaluations_option,
+)
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
-from pac_host.pal import PALConfig
 from pac_host.plots import experiment_plots
 
 
@@ -46,15 +51,25 @@ from pac_host.plots import experiment_plots
 @click.option("--optimum-runs", default=8, show_default=True, type=int,
               help="Long CGA runs on the actual table that establish the optimum (raised to "
                    "the best any run shows on the robot).")
-@click.option("--optimum-generations", default=3000, show_default=True, type=int)
+@click.option("--optimum-generations", default=3000, show_default=True, type=int,
+              help="Length of each optimum run (paper profile).")
+@click.option("--optimum-evaluations", default=5_000_000, show_default=True, type=int,
+              help="Evaluations of each optimum run (`optimize` chains; default profile).")
+@profile_option()
+@search_evaluations_option()
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
-                   optimum_runs, optimum_generations, resume) -> None:
+                   optimum_runs, optimum_generations, optimum_evaluations, profile,
+                   search_evaluations, resume) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
     robot's own table, the ceiling for a co-evolved model.
+
+    --profile paper runs the paper's settings (40 CGA generations between punctuations; the
+    optimum from long CGA runs); the default profile searches turn cycles with a budget of
+    evaluations per punctuation (anytime PAL) and takes the optimum from `optimize` chains.
 
     Writes OUT/summary.json (per method and seed: operational coverage on the actual robot at
     each punctuation, the generation the optimum was first reached, the final model error per
@@ -69,7 +84,10 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
         base_seed=base_seed, initial_generations=initial_generations,
         optimum_runs=optimum_runs, optimum_generations=optimum_generations,
-        pal=replace(PALConfig(), budget=check_budget(budget), model_fitness=model_fitness),
+        optimum_search="cga" if profile == "paper" else "optimize",
+        optimum_evaluations=optimum_evaluations,
+        pal=profile_pal(profile, search_evaluations, budget=check_budget(budget),
+                        model_fitness=model_fitness),
     )
     actual = load_with_effects(actual_spec, effect_specs)
     model = resolve_table(model_spec)

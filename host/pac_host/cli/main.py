@@ -39,7 +39,8 @@ def main() -> None:
     anytime learning).
 
     \b
-    Without hardware:  simulate, experiment (the paper's experiment), evolve (PAL over the
+    Without hardware:  simulate, optimize (the best turn cycle on a model),
+                       experiment (the paper's experiment), evolve (PAL over the
                        serial protocol against the built-in emulator)
     On the robot:      robot hello|status|..., flash, evolve --port, measure
     When model and robot disagree:  diagnose --model TABLE --runs RUNS.jsonl
@@ -53,12 +54,13 @@ def _register() -> None:
         experiment,
         flash,
         measure,
+        optimize,
         robot,
         simulate,
         table,
     )
 
-    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash):
+    for mod in (table, simulate, optimize, experiment, robot, evolve, measure, diagnose, flash):
         mod.register(main)
 
 

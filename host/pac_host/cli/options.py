@@ -45,3 +45,37 @@ def load_with_effects(table_spec: str, effect_specs: tuple[str, ...] = ()) -> Ga
 def progress_enabled() -> bool:
     """Progress bars go to stderr, and only when it is a terminal."""
     return sys.stderr.isatty()
+
+
+def profile_option():
+    from pac_host import profiles
+
+    return click.option(
+        "--profile", default=profiles.DEFAULT, show_default=True,
+        type=click.Choice(sorted(profiles.PROFILES)),
+        help="paper: the paper's 40 CGA generations between punctuations; default: anytime "
+             "PAL, a budget of search evaluations per punctuation.")
+
+
+def search_evaluations_option():
+    return click.option(
+        "--search-evaluations", type=int, default=None,
+        help="Turn-cycle search evaluations per punctuation (default profile; "
+             "overrides the profile's).")
+
+
+def profile_pal(profile: str, search_evaluations: int | None, **fields):
+    """The PAL settings of a profile, with the command's own settings on top."""
+    from dataclasses import replace
+
+    from pac_host import profiles
+    from pac_host.pal import PALConfig
+
+    cfg = profiles.apply(profile, replace(PALConfig(), **fields))
+    if search_evaluations is not None:
+        if cfg.search == "cga":
+            raise InputError("--search-evaluations needs an anytime profile, not "
+                             f"--profile {profile}")
+        cfg = replace(cfg, search_evaluations=search_evaluations)
+    cfg.check()
+    return cfg

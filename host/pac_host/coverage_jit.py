@@ -1,0 +1,145 @@
+"""The coverage simulator compiled with numba: one path at a time, no temporaries.
+
+The same arithmetic as the numpy simulator in :mod:`pac_host.coverage`, operation for operation
+(the heading as a running complex product, each move rotated by the heading it starts from, the
+positions as a running sum, the body-width test on each pose), so both give the same figures
+value for value; the numpy simulator stays the reference the tests compare this kernel with.
+It covers what the search needs: scores of turn cycles on one or many tables whose effects
+depend on the gait id alone (plus a world drift); paths with sequence effects, and kept paths,
+run in numpy.
+
+Set ``PAC_KERNEL=numpy`` in the environment to run everything in numpy.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+
+import numpy as np
+
+# numba is a dependency; the numpy simulator stands in where it is missing. It is imported on
+# the first evaluation, not with the package: commands that simulate nothing start faster.
+AVAILABLE = (importlib.util.find_spec("numba") is not None
+             and os.environ.get("PAC_KERNEL", "numba") != "numpy")
+_compiled = None
+
+_BLOCK = 60.0
+_COLUMNS = 3
+_HALF_BODY = 6.0
+
+
+def _block(x: float, y: float, c: float, s: float) -> int:
+    """Block detected at position (x, y) with heading cosine ``c`` and sine ``s``: as
+    ``coverage._detect``, one pose at a time."""
+    hx = abs(c) * _HALF_BODY
+    hy = abs(s) * _HALF_BODY
+    lo = x - hx
+    col = math.floor(lo / _BLOCK)
+    if lo < 0 or (x + hx) - col * _BLOCK >= _BLOCK or col >= _COLUMNS:
+        return -1
+    lo = y - hy
+    row = math.floor(lo / _BLOCK)
+    if lo < 0 or (y + hy) - row * _BLOCK >= _BLOCK:
+        return -1
+    return int(row * _COLUMNS + col)
+
+
+def _figures(blocks: np.ndarray, n: int, out: np.ndarray, k: int) -> None:
+    """(covered, covered once, fitness, repeat visits) of one path's detected blocks into
+    ``out[:, k]``: as ``coverage.figures_from_blocks``."""
+    top = -1
+    for t in range(n):
+        if blocks[t] > top:
+            top = blocks[t]
+    n_rows = top // _COLUMNS + 2
+    visits = np.zeros(n_rows * _COLUMNS, dtype=np.int64)
+    prev = -1
+    for t in range(n):
+        b = blocks[t]
+        if b >= 0 and b != prev:
+            visits[b] += 1
+        prev = b
+    covered = once = total = 0
+    fitness = -1
+    for r in range(n_rows):
+        in_row = 0
+        for c in range(_COLUMNS):
+            v = visits[r * _COLUMNS + c]
+            total += v
+            if v > 0:
+                covered += 1
+                in_row += 1
+            if v == 1:
+                once += 1
+        if fitness < 0 and in_row < _COLUMNS:
+            fitness = _COLUMNS * r + in_row
+    out[0, k] = covered
+    out[1, k] = once
+    out[2, k] = fitness
+    out[3, k] = total - covered
+
+
+def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.ndarray,
+                 q0: complex, p0: complex, drift: complex, budget: int) -> np.ndarray:
+    """Figures (4, n_tables * P) of turn cycles ``genes`` (P, G, 2) on tables whose moves are
+    ``rot`` and ``disp`` (n_tables * 32,): path k runs genes k % P on table k // P."""
+    n_genes = genes.shape[0]
+    n_paths = n_tables * n_genes
+    out = np.empty((4, n_paths), dtype=np.int64)
+    blocks = np.empty(budget + 1, dtype=np.int64)
+    for k in range(n_paths):
+        g = genes[k % n_genes]
+        base = (k // n_genes) * 32
+        loop = 0
+        for j in range(g.shape[0]):
+            loop += g[j, 1]
+        q = q0
+        p = p0
+        blocks[0] = _block(p.real, p.imag, q.real, q.imag)
+        j = 0
+        left = g[0, 1]
+        for t in range(1, budget + 1):
+            if loop == 0:  # a turn cycle without repetitions stands still
+                r = 1.0 + 0.0j
+                d = 0.0j
+                dr = 0.0j
+            else:
+                while left == 0:
+                    j = (j + 1) % g.shape[0]
+                    left = g[j, 1]
+                left -= 1
+                r = rot[base + g[j, 0]]
+                d = disp[base + g[j, 0]]
+                dr = drift
+            step = d * q
+            q = q * r
+            p = p + (step + dr)
+            blocks[t] = _block(p.real, p.imag, q.real, q.imag)
+        _figures(blocks, budget + 1, out, k)
+    return out
+
+
+def _compile():
+    """The kernel compiled (cached on disk by numba between processes)."""
+    global _compiled, _block, _figures
+    if _compiled is None:
+        import numba
+
+        opts = {"cache": True, "nogil": True}
+        _block = numba.njit(**opts)(_block)
+        _figures = numba.njit(**opts)(_figures)
+        _compiled = numba.njit(**opts)(_score_paths)
+    return _compiled
+
+
+def score_paths(genes: np.ndarray, n_tables: int, moves: np.ndarray, q0: complex, p0: complex,
+                drift: complex | None, budget: int) -> np.ndarray:
+    """Figures (4, n_tables * P) of turn cycles (P, G, 2) on tables with complex ``moves``
+    (n_tables * 32, 2) as ``kinematics.complex_moves`` gives them; path k runs turn cycle
+    k % P on table k // P."""
+    return _compile()(np.ascontiguousarray(genes, dtype=np.int64), n_tables,
+                        np.ascontiguousarray(moves[:, 1]), np.ascontiguousarray(moves[:, 0]),
+                        complex(q0), complex(p0), 0j if drift is None else complex(drift),
+                        int(budget))

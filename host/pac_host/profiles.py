@@ -1,0 +1,37 @@
+"""Named settings profiles: each is a dict of :class:`pac_host.pal.PALConfig` field overrides.
+
+- ``paper``: no overrides. :class:`~pac_host.pal.PALConfig`'s own defaults are the paper's
+  settings (40 generations of the plain CGA, population 128, today's operators, between
+  punctuations) and the experiment establishes its optimum with long CGA runs, so this profile
+  reproduces the figures published for the paper's experiment, seed for seed.
+- ``default``: anytime PAL. Between punctuations the CGA's place is taken by iterated local
+  search (:mod:`pac_host.search`) with a budget of coverage evaluations per punctuation, run
+  while the robot walks the tests; the experiment's optimum comes from
+  :func:`pac_host.search.optimize.optimize`.
+
+Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
+must name a ``PALConfig`` field.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields, replace
+
+from pac_host.errors import InputError
+
+PROFILES: dict[str, dict] = {
+    "paper": {},
+    "default": {"search": "ils", "search_evaluations": 250_000},
+}
+DEFAULT = "default"
+
+
+def apply(profile: str, cfg):
+    """``cfg`` (a PALConfig) with the profile's overrides."""
+    if profile not in PROFILES:
+        raise InputError(f"unknown profile {profile!r}; use one of {', '.join(PROFILES)}")
+    names = {f.name for f in fields(cfg)}
+    bad = set(PROFILES[profile]) - names
+    if bad:
+        raise ValueError(f"profile {profile} overrides unknown PALConfig fields {sorted(bad)}")
+    return replace(cfg, **PROFILES[profile])

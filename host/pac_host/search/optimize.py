@@ -1,0 +1,122 @@
+"""``pac-host optimize``: the strongest search for a turn cycle on a model that the project has.
+
+Iterated local search with restarts (:mod:`pac_host.search.local`): climb single-gene changes
+until none improves, kick two genes and climb again, moving on to any local optimum at least as
+fit, and restart from a random turn cycle after ``patience`` kicks in a row without progress.
+The search runs as ``chains`` independent chains, each seeded from ``SeedSequence([seed,
+chain])``; ``jobs`` processes run them side by side, so for a budget in evaluations the result
+depends on the seed alone. A budget in seconds is split among the chains by wall time (each
+chain gets ``seconds`` when there are as many processes as chains).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from pac_host.coverage import (
+    DEFAULT_BUDGET,
+    MAX_GENES,
+    fitness_of_score,
+    format_turn_cycle,
+    simulate,
+)
+from pac_host.errors import InputError
+from pac_host.model.effects import Effect
+from pac_host.search.local import Objective, restarts
+
+MAX_EVALUATIONS = 10**11
+MAX_SECONDS = 7 * 24 * 3600.0
+
+
+@dataclass(frozen=True)
+class OptimizeConfig:
+    """What a search is: budget of gait cycles per walk, stopping rule, chains, seed."""
+
+    budget: int = DEFAULT_BUDGET
+    seconds: float | None = None
+    evaluations: int | None = None
+    chains: int = 1
+    seed: int = 0
+    patience: int = 50
+    kick_genes: int = 2
+
+    def check(self) -> None:
+        if self.seconds is None and self.evaluations is None:
+            raise InputError("give a budget: --seconds S or --evaluations N")
+        if self.seconds is not None and not 0 < self.seconds <= MAX_SECONDS:
+            raise InputError(f"--seconds must be in (0, {MAX_SECONDS:.0f}], got {self.seconds}")
+        if self.evaluations is not None and not 0 < self.evaluations <= MAX_EVALUATIONS:
+            raise InputError(f"--evaluations must be in 1..{MAX_EVALUATIONS}, "
+                             f"got {self.evaluations}")
+        if not 1 <= self.budget <= 100_000:
+            raise InputError(f"--budget must be 1..100000 gait cycles, got {self.budget}")
+        if not 1 <= self.chains <= 1024:
+            raise InputError(f"--chains must be 1..1024, got {self.chains}")
+        if self.patience < 1 or not 1 <= self.kick_genes <= MAX_GENES:
+            raise InputError("patience must be >= 1 and kick genes 1..9")
+
+
+def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig, chain: int,
+              seconds: float | None, evaluations: int | None) -> dict:
+    """Chain ``chain`` of a search: its best turn cycle (genes), score and progress."""
+    simulate(rows, np.zeros((1, MAX_GENES, 2), dtype=np.int64), cfg.budget, effects)  # warm up
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, chain]))
+    t0 = time.perf_counter()
+    objective = Objective(rows, cfg.budget, effects, limit=evaluations,
+                          deadline=None if seconds is None else t0 + seconds)
+    restarts(objective, rng, cfg.patience, cfg.kick_genes)
+    return {"chain": chain, "genes": objective.best.tolist(), "score": objective.best_score,
+            "evaluations": objective.evaluations,
+            "seconds": round(time.perf_counter() - t0, 3),
+            "trace": [{"evaluations": e, "seconds": round(t, 3),
+                       "fitness": int(fitness_of_score(s))} for e, t, s in objective.trace]}
+
+
+def optimize(rows: np.ndarray, cfg: OptimizeConfig, effects: Sequence[Effect] = (),
+             jobs: int = 1) -> dict:
+    """Run the search; returns the best turn cycle, its figures, each chain's trace and the
+    settings (JSON-ready)."""
+    cfg.check()
+    effects = tuple(effects)
+    n = cfg.chains
+    seconds = None if cfg.seconds is None else cfg.seconds * min(jobs, n) / n
+    evals = None if cfg.evaluations is None else [cfg.evaluations // n + (c < cfg.evaluations % n)
+                                                  for c in range(n)]
+    args = [(rows, effects, cfg, c, seconds, None if evals is None else evals[c])
+            for c in range(n) if evals is None or evals[c] > 0]
+    t0 = time.perf_counter()
+    if jobs <= 1 or len(args) <= 1:
+        chains = [run_chain(*a) for a in args]
+    else:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(args))) as ex:
+            chains = list(ex.map(run_chain, *zip(*args, strict=True)))
+    wall = time.perf_counter() - t0
+    best = max(chains, key=lambda c: c["score"])  # the first chain wins a tie
+    genes = np.array(best["genes"], dtype=np.int64)
+    cov = simulate(rows, genes, cfg.budget, effects)
+    return {
+        "format": "pac-optimize/1",
+        "turn_cycle": format_turn_cycle(genes),
+        "genes": best["genes"],
+        **cov.row(0),
+        "evaluations": sum(c["evaluations"] for c in chains),
+        "seconds": round(wall, 3),
+        "settings": {**asdict(cfg), "jobs": jobs,
+                     "method": "iterated local search with restarts"},
+        "chains": chains,
+    }
+
+
+def best_over_time(chains: list[dict]) -> list[tuple[float, int]]:
+    """(seconds, best fitness so far) over all chains, as if they ran side by side."""
+    points = sorted((t["seconds"], t["fitness"]) for c in chains for t in c["trace"])
+    out: list[tuple[float, int]] = []
+    for t, f in points:
+        if not out or f > out[-1][1]:
+            out.append((t, f))
+    return out
