@@ -16,7 +16,10 @@ import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, fitness_of_score, simulate
 from pac_host.model.effects import Effect
-from pac_host.search.neighbours import _VALUES, canonical, neighbours, slots
+from pac_host.search.neighbours import _VALUES, canonical, neighbours, pair_neighbours, slots
+
+
+PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 
 
 class Exhausted(Exception):
@@ -75,10 +78,11 @@ def climb(x: np.ndarray, score: int, objective: Objective,
           rng: np.random.Generator | None = None) -> tuple[np.ndarray, int]:
     """Local search over single-gene changes until none scores higher.
 
-    Without ``rng``: best improvement over the whole neighbourhood at each move. With it: the
-    slots are visited in a random order, each slot's changes (up to 2,016) evaluated in one
-    batch, and the best of a slot taken as soon as it improves (cheaper per move, about as
-    good). Returns the local optimum (canonical) and its score."""
+    Without ``rng``: best improvement over the whole neighbourhood at each move. With it:
+    the genes are visited in a random order, a gene's changes evaluated in one batch and the
+    best taken as soon as it improves, the cheap changes (the gene's id or repetitions alone)
+    before any change of the gene, and paired repetition changes last. Returns the local
+    optimum (canonical) and its score."""
     budget = objective.budget
     x = canonical(x, budget)
     if rng is None:
@@ -89,20 +93,29 @@ def climb(x: np.ndarray, score: int, objective: Objective,
             if s[i] <= score:
                 return x, score
             x, score = canonical(n[i], budget), int(s[i])
-    tried: set[int] = set()
+    # tiers of neighbourhoods, cheapest first: a gene's id or repetitions alone, any change
+    # of one gene, paired repetition changes; an improvement anywhere restarts at the first
+    tried: set[tuple[int, int]] = set()
     while True:
-        todo = [int(j) for j in slots(x, budget) if int(j) not in tried]
-        if not todo:
+        move = None
+        for tier in range(3):
+            where = [PAIRS] if tier == 2 else [int(j) for j in slots(x, budget)]
+            todo = [j for j in where if (tier, j) not in tried]
+            if todo:
+                move = tier, todo[rng.integers(len(todo))]
+                break
+        if move is None:
             return x, score
-        j = todo[rng.integers(len(todo))]
-        n = neighbours(x, budget, only=j)
+        tier, j = move
+        n = (pair_neighbours(x, budget) if tier == 2
+             else neighbours(x, budget, only=j, small=tier == 0))
         s = objective(n)
         i = int(np.argmax(s)) if len(s) else 0
         if len(s) and s[i] > score:
             x, score = canonical(n[i], budget), int(s[i])
-            tried = {j}
+            tried = {move}
         else:
-            tried.add(j)
+            tried.add(move)
 
 
 def kick(x: np.ndarray, rng: np.random.Generator, genes: int, budget: int) -> np.ndarray:
@@ -137,18 +150,39 @@ def iterated_local_search(x: np.ndarray, objective: Objective, rng: np.random.Ge
     return x, score
 
 
+RESTART_POPULATION, RESTART_GENERATIONS = 64, 150  # the CGA run that starts each restart
+
+
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
              kick_genes: int = 2, start: np.ndarray | None = None) -> None:
-    """Iterated local search from ``start`` (or a random turn cycle), restarted from a random
-    turn cycle whenever it stalls for ``patience`` kicks, until the budget runs out; the best
-    is ``objective.best``."""
-    from pac_host.cga import random_population
-
+    """Iterated local search from ``start`` (or the best of a short CGA run), restarted from
+    the best of a fresh short CGA run whenever it stalls for ``patience`` kicks, until the
+    budget runs out; the best is ``objective.best``. (The CGA finds good regions cheaply; the
+    local search then gets much further from there than the CGA does.)"""
     x = start
     while objective.remaining() is None or objective.remaining() > 0:
-        if x is None:
-            x = random_population(rng, 1)[0]
-        iterated_local_search(x, objective, rng, kick_genes, patience)
+        score = None
+        try:
+            if x is None:
+                x, score = cga_start(objective, rng)
+        except Exhausted:
+            return
+        iterated_local_search(x, objective, rng, kick_genes, patience, score)
         if objective.deadline is not None and time.perf_counter() >= objective.deadline:
             return
         x = None
+
+
+def cga_start(objective: Objective, rng: np.random.Generator) -> tuple[np.ndarray, int]:
+    """The best turn cycle of a short CGA run from a random population, scored through the
+    objective (so its evaluations count)."""
+    from pac_host import cga
+
+    cfg = cga.CGAConfig(population=RESTART_POPULATION, budget=objective.budget)
+    pop = cga.random_population(rng, cfg.population)
+    fit = objective(pop)
+    for _ in range(RESTART_GENERATIONS):
+        pop = cga.step(pop, fit, rng, cfg)
+        fit = objective(pop)
+    i = int(np.argmax(fit))
+    return pop[i], int(fit[i])

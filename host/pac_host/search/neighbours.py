@@ -46,16 +46,43 @@ def slots(genes: np.ndarray, budget: int) -> np.ndarray:
     return np.flatnonzero(reached & (~empty | first_empty))
 
 
-def neighbours(genes: np.ndarray, budget: int, only: int | None = None) -> np.ndarray:
+def neighbours(genes: np.ndarray, budget: int, only: int | None = None,
+               small: bool = False) -> np.ndarray:
     """All distinct single-gene changes of one turn cycle (9, 2), as a (N, 9, 2) array; with
-    ``only``, the changes of that gene alone."""
+    ``only``, the changes of that gene alone; with ``small``, only those that keep the gene's
+    id or its repetitions (at most 94 a gene instead of 2,016)."""
     genes = canonical(genes, budget)
     parts = []
     for j in slots(genes, budget) if only is None else [only]:
         keep = np.any(_VALUES != genes[j], axis=1)
+        if small and genes[j, 1] > 0:
+            keep &= np.any(_VALUES == genes[j], axis=1)
         block = np.repeat(genes[None], int(keep.sum()), axis=0)
         block[:, j] = _VALUES[keep]
         parts.append(block)
+    if not parts:
+        return np.empty((0,) + genes.shape, dtype=np.int64)
+    return np.concatenate(parts)
+
+
+def pair_neighbours(genes: np.ndarray, budget: int, span: int = 3) -> np.ndarray:
+    """Changes of the repetitions of two reached genes at once, each by -span..span (not both
+    0): the compensating changes (one sweep longer, another shorter) that a single-gene
+    change cannot make without first getting worse."""
+    genes = canonical(genes, budget)
+    active = [j for j in slots(genes, budget) if genes[j, 1] > 0]
+    d = np.arange(-span, span + 1)
+    da, db = (a.ravel() for a in np.meshgrid(d, d, indexing="ij"))
+    keep = (da != 0) | (db != 0)
+    da, db = da[keep], db[keep]
+    parts = []
+    for x, i in enumerate(active):
+        for j in active[x + 1:]:
+            block = np.repeat(genes[None], len(da), axis=0)
+            block[:, i, 1] += da
+            block[:, j, 1] += db
+            ok = ((block[:, [i, j], 1] >= 1) & (block[:, [i, j], 1] <= MAX_REPS)).all(axis=1)
+            parts.append(block[ok])
     if not parts:
         return np.empty((0,) + genes.shape, dtype=np.int64)
     return np.concatenate(parts)

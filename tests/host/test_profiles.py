@@ -1,0 +1,94 @@
+"""Profiles: the paper profile gives, bit for bit, what the project gave before the anytime
+search existed; the default profile searches with a budget of evaluations per punctuation."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pac_host import pal, profiles
+from pac_host.cli.main import main
+from pac_host.errors import InputError
+from pac_host.model import measured_table, shifted_table
+
+SHORT = ["experiment", "--seeds", "2", "--generations", "80", "--initial-generations", "60",
+         "--optimum-runs", "1", "--optimum-generations", "60", "--budget", "150"]
+# Computed by the code before profiles existed (the CGA between punctuations, the numpy
+# simulator only), with the command SHORT: per run, the operational coverage at each
+# punctuation, the final operational turn cycle and a digest of the final best model.
+BEFORE = {
+    ("full", 0): ([4, 4, 4], "4:1,23:24,0:3,26:48,20:22,23:35,12:39,26:18,11:22",
+                  "b05a476743025973"),
+    ("full", 1): ([2, 5, 5], "21:62,8:42,2:16,23:24,19:6,3:44,6:12,7:11,26:28",
+                  "141fd8af44368d5a"),
+    ("oracle", 0): ([5, 16, 16], "5:3,22:58,8:38,23:34,12:13,5:47,23:3,0:16,28:54",
+                    "62cbd0a0a2db7c8f"),
+    ("oracle", 1): ([8, 11, 11], "23:63,8:43,4:24,22:24,27:2,18:35,27:3,20:19,16:27",
+                    "62cbd0a0a2db7c8f"),
+    ("partial", 0): ([4, 4, 14], "5:2,23:36,9:46,11:11,7:23,26:42,28:63,4:58,0:3",
+                     "b7ed3d7698711de5"),
+    ("partial", 1): ([2, 2, 2], "21:38,10:41,6:17,23:25,15:21,23:57,25:18,7:6,5:46",
+                     "fa1a39a2c031ca4f"),
+}
+
+
+def test_paper_profile_reproduces_the_results_from_before_bit_for_bit(tmp_path):
+    res = CliRunner().invoke(main, [*SHORT, "--profile", "paper", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["optimum"] == 16
+    got = {(r["method"], r["seed"]): (
+        r["coverage"], r["operational"],
+        hashlib.sha256(json.dumps(r["final_model"]).encode()).hexdigest()[:16])
+        for r in summary["runs"]}
+    assert got == BEFORE
+    assert json.loads((tmp_path / "optimum.json").read_text())["search"]["method"] == "CGA"
+
+
+def test_profiles_are_pal_overrides():
+    assert profiles.apply("paper", pal.PALConfig()) == pal.PALConfig()
+    cfg = profiles.apply("default", pal.PALConfig())
+    assert cfg.search == "ils" and cfg.search_evaluations > 0
+    with pytest.raises(InputError):
+        profiles.apply("fast", pal.PALConfig())
+
+
+def test_anytime_search_in_a_worker_equals_the_search_in_line():
+    """evolve runs the search in a thread during the tests; experiment in line: same run."""
+    cfg = replace(profiles.apply("default", pal.PALConfig(cga_population=16,
+                                                          model_population=8,
+                                                          model_generations=3,
+                                                          generations=40, interval=20)),
+                  search_evaluations=3000)
+    robot = pal.SimulatedRobot(shifted_table())
+    out = []
+    for concurrent in (False, True):
+        rng = np.random.default_rng(5)
+        state = pal.initial_state(measured_table(), rng, cfg)
+        recs = []
+        for _ in range(2):
+            state, rec = pal.punctuate(state, robot, rng, cfg, concurrent=concurrent)
+            state, _ = pal.advance_cga(state, cfg.interval, rng, cfg)
+            recs.append(rec)
+        out.append((recs, state.cga_pop.tolist(), state.models.tolist()))
+    assert out[0] == out[1]
+    assert out[0][0][0]["search"]["evaluations"] == 3000
+
+
+def test_anytime_search_improves_the_turn_cycle_on_the_model():
+    cfg = replace(profiles.apply("default", pal.PALConfig(cga_population=16, model_population=8,
+                                                          model_generations=2)),
+                  search_evaluations=20000)
+    rng = np.random.default_rng(2)
+    state = pal.initial_state(shifted_table(), rng, cfg)
+    model = state.models[0]  # the search runs on the model the tests were chosen on
+    before = pal.cga.fitness(model, state.cga_pop[:1], cfg.budget)[0]
+    state, rec = pal.punctuate(state, pal.SimulatedRobot(shifted_table()), rng, cfg)
+    after = pal.cga.fitness(model, state.cga_pop[:1], cfg.budget)[0]
+    assert rec["search"]["best_score"] == after
+    assert after > before

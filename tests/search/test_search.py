@@ -1,0 +1,135 @@
+"""The turn-cycle searches: neighbourhoods, climbs to real local optima, exact evaluation
+budgets, reproducibility, and the search checked on tables it was not built on."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pac_host import cga
+from pac_host.cli.main import main
+from pac_host.coverage import fitness_of_score, parse_turn_cycle, simulate
+from pac_host.model import measured_table, parse_effect, shifted_table
+from pac_host.search.local import Exhausted, Objective, climb
+from pac_host.search.neighbours import canonical, neighbours, pair_neighbours
+from pac_host.search.optimize import OptimizeConfig, optimize
+
+
+def _score(rows, genes, budget=200, effects=()):
+    return simulate(rows, genes, budget, effects).score()
+
+
+def test_canonical_form_walks_the_same_path():
+    rng = np.random.default_rng(0)
+    pop = cga.random_population(rng, 500)
+    pop[..., 1] //= rng.integers(1, 9, size=pop.shape[:2])
+    rows = shifted_table().rows
+    np.testing.assert_array_equal(_score(rows, pop, 120), _score(rows, canonical(pop, 120), 120))
+
+
+def test_neighbourhood_is_every_distinct_single_gene_change():
+    x = parse_turn_cycle("12:60,3:10,0:0,5:0,22:70" if False else "12:60,3:10,0:0,5:3")
+    n = neighbours(x, 200)
+    diff = (n != canonical(x, 200)).any(axis=2).sum(axis=1)
+    assert (diff == 1).all()  # one gene changed each time
+    assert len(np.unique(n.reshape(len(n), -1), axis=0)) == len(n)  # no duplicates
+    # slots 0, 1, 3 and the first empty one (2); the empty run 4..8 after gene 3 too
+    assert sorted({int(np.flatnonzero(d)[0]) for d in (n != canonical(x, 200)).any(axis=2)}) \
+        == [0, 1, 2, 3, 4]
+    # a gene the budget never reaches is not changed
+    assert not (neighbours(parse_turn_cycle("12:63,12:63,3:5"), 100)[:, 2]
+                != [0, 0]).any()
+
+
+def test_climb_ends_at_a_local_optimum():
+    rows = measured_table().rows
+    obj = Objective(rows, 200)
+    x = cga.random_population(np.random.default_rng(3), 1)[0]
+    best, score = climb(x, int(obj(x[None])[0]), obj, np.random.default_rng(4))
+    assert score == _score(rows, best)[0]
+    assert _score(rows, neighbours(best, 200)).max() <= score
+    assert _score(rows, pair_neighbours(best, 200)).max() <= score
+
+
+def test_objective_counts_evaluations_exactly_and_stops():
+    obj = Objective(measured_table().rows, 200, limit=250)
+    pop = cga.random_population(np.random.default_rng(1), 200)
+    obj(pop)
+    assert len(obj(pop)) == 50 and obj.evaluations == 250
+    with pytest.raises(Exhausted):
+        obj(pop)
+    assert obj.best_score == _score(measured_table().rows, pop).max()
+
+
+def test_optimize_is_reproducible_and_jobs_do_not_change_it():
+    cfg = OptimizeConfig(evaluations=30_000, chains=2, seed=7)
+    a = optimize(shifted_table().rows, cfg)
+    b = optimize(shifted_table().rows, cfg, jobs=2)
+    assert a["genes"] == b["genes"] and a["evaluations"] == b["evaluations"] == 30_000
+    strip = [{k: v for k, v in c.items() if k != "seconds"} | {"trace": [
+        {k: v for k, v in t.items() if k != "seconds"} for t in c["trace"]]}
+        for c in a["chains"]]
+    assert strip == [{k: v for k, v in c.items() if k != "seconds"} | {"trace": [
+        {k: v for k, v in t.items() if k != "seconds"} for t in c["trace"]]}
+        for c in b["chains"]]
+    cov = simulate(shifted_table().rows, np.array(a["genes"]), 200)
+    assert a["fitness"] == cov.row(0)["fitness"]
+
+
+def test_search_beats_the_cga_on_robots_it_was_not_built_on():
+    """The same number of evaluations (the CGA's 1,500 generations of 128) on tables with
+    random row errors and with effects: the search's best against the paper's CGA's best."""
+    rng = np.random.default_rng(11)
+    base = measured_table().rows
+    robots = [(base + rng.normal(0, 1.0, base.shape) * (rng.random((32, 1)) < 0.5), ()),
+              (base, (parse_effect("yaw_bias:delta=-1.2"), parse_effect("stride_scale:a=0.8"),
+                      parse_effect("floor_slope:s=0.6,theta=120"))),
+              (base + rng.normal(0, 0.5, base.shape), (parse_effect("turn_scale:c=1.3"),))]
+    n = 128 * 1500
+    found, cga_best = [], []
+    for rows, effects in robots:
+        res = optimize(rows, OptimizeConfig(evaluations=n, seed=1), effects)
+        _, best = cga.evolve(rows, cga.random_population(rng, 128), 1499, rng, effects=effects)
+        assert res["evaluations"] == n
+        found.append(res["fitness"])
+        cga_best.append(int(fitness_of_score(best.max())))
+    assert sum(found) > sum(cga_best), (found, cga_best)
+    assert all(f >= c - 2 for f, c in zip(found, cga_best, strict=True)), (found, cga_best)
+
+
+def test_optimize_command_prints_and_writes_the_result(tmp_path):
+    out, png = tmp_path / "best.json", tmp_path / "best.png"
+    res = CliRunner().invoke(main, ["optimize", "--table", "measured", "--evaluations", "20000",
+                                    "--seed", "3", "--json", str(out), "--plot", str(png)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    assert f"best turn cycle on measured: {doc['turn_cycle']}" in res.output
+    assert f"fitness: {doc['fitness']}" in res.output
+    sim = CliRunner().invoke(main, ["simulate", "--table", "measured", "--turn-cycle",
+                                    doc["turn_cycle"], "--json"])
+    assert json.loads(sim.output)["fitness"] == doc["fitness"]
+    assert doc["settings"]["seed"] == 3 and doc["evaluations"] == 20000
+    assert doc["chains"][0]["trace"][-1]["fitness"] == doc["fitness"]
+    assert png.stat().st_size > 0
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--seconds", "0"], "--seconds must be in (0,"),
+    (["--seconds", "-3"], "--seconds must be in (0,"),
+    (["--seconds", "1e12"], "--seconds must be in (0,"),
+    (["--evaluations", "0"], "--evaluations must be in 1.."),
+    (["--evaluations", "-5"], "--evaluations must be in 1.."),
+    (["--evaluations", "100000000000000"], "--evaluations must be in 1.."),
+    (["--evaluations", "10", "--budget", "-1"], "--budget must be 1..100000"),
+    (["--evaluations", "10", "--budget", "10000000"], "--budget must be 1..100000"),
+    (["--evaluations", "10", "--chains", "0"], "--chains must be 1..1024"),
+    (["--evaluations", "10", "--table", "nowhere.json"], "nowhere.json"),
+])
+def test_optimize_bad_input_is_one_line_and_exit_2(args, message):
+    res = CliRunner().invoke(main, ["optimize", *args])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], res.output
