@@ -1,10 +1,10 @@
 """Coverage simulator throughput, PAL punctuation wall time, and the 30-seed experiment.
 
 Evaluations per second are measured for the compiled kernel and for the numpy simulator, the
-reference. Targets (issue: foundation): >= 100,000 turn-cycle evaluations per second on one core at a
-200-cycle budget; one punctuation (40 CGA generations + 40 model-GA generations + the 3 robot
-tests) under 0.5 s; the 30-seed, two-method, 1000-generation experiment under 10 minutes with
---jobs 2.
+reference (target: the kernel at least 3 times faster). Targets (issue: foundation): >= 100,000
+turn-cycle evaluations per second on one core at a 200-cycle budget; one punctuation (40 CGA
+generations + 40 model-GA generations + the 3 robot tests) under 0.5 s; the 30-seed,
+two-method, 1000-generation experiment (paper profile) under 10 minutes with --jobs 2.
 """
 
 from __future__ import annotations

@@ -214,7 +214,7 @@ def punctuate(
     model_rows = state.models[0]
     predicted = simulate(model_rows, tests, cfg.budget, state.model_effects)
     search = None
-    if cfg.search != "cga" and state.generation < cfg.generations:
+    if cfg.search != "cga":  # at the last punctuation too: a run carried on needs its result
         search = _AnytimeSearch(state, np.random.default_rng(rng.integers(2**63)), cfg)
     if search is not None and concurrent:
         with ThreadPoolExecutor(1) as pool:

@@ -10,7 +10,8 @@ from click.testing import CliRunner
 from pac_host.cli.main import main
 
 SMALL = ["--seeds", "2", "--generations", "80", "--initial-generations", "30",
-         "--optimum-runs", "2", "--optimum-generations", "60"]
+         "--optimum-runs", "2", "--optimum-generations", "60", "--optimum-evaluations", "20000",
+         "--search-evaluations", "5000"]
 
 
 def _run(args):

@@ -11,7 +11,8 @@ from pac_host.cli.main import main
 from pac_host.model import load_table
 
 SMALL = ["--cga-population", "24", "--model-population", "12", "--model-generations", "10",
-         "--initial-generations", "30", "--interval", "20", "--budget", "100", "--seed", "2"]
+         "--initial-generations", "30", "--interval", "20", "--budget", "100", "--seed", "2",
+         "--search-evaluations", "20000"]
 
 
 def _invoke(*args):

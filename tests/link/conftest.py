@@ -15,7 +15,8 @@ from pac_host.cli.main import main
 
 # small GA settings so a punctuation takes about a second against the emulator at full speed
 SMALL = ["--cga-population", "24", "--model-population", "12", "--model-generations", "15",
-         "--initial-generations", "30", "--interval", "20", "--budget", "100", "--seed", "4"]
+         "--initial-generations", "30", "--interval", "20", "--budget", "100", "--seed", "4",
+         "--search-evaluations", "20000"]
 
 
 def invoke(*args: str, input: str | None = None):

@@ -18,7 +18,6 @@ from pac_host.coverage import DEFAULT_BUDGET, START_POSE, fitness_of_score, simu
 from pac_host.model.effects import Effect
 from pac_host.search.neighbours import _VALUES, canonical, neighbours, pair_neighbours, slots
 
-
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 
 
