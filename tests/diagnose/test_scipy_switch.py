@@ -21,7 +21,7 @@ from pac_host.diagnose.noise import estimate_noise
 from pac_host.diagnose.residuals import batch_of
 from pac_host.diagnose.synth import blind_case, cga_turn_cycles, moderate_effect, world_runs
 from pac_host.model import Effect, GaitTable, measured_table
-from pac_host.model.effects import EFFECT_SPECS
+from pac_host.model.effects import BUILT_IN, EFFECT_SPECS
 
 REF = json.loads((Path(__file__).parent / "data" / "before_scipy.json").read_text())
 
@@ -49,7 +49,7 @@ def _fit_cases():
     prob = Problem(measured_table().rows, (), b, whitener(b, estimate_noise(b)))
     for names in (["lateral_slip"], ["turn_shift"], ["yaw_bias", "lateral_slip"]):
         yield prob, names
-    for j, name in enumerate(EFFECT_SPECS):
+    for j, name in enumerate(n for n in EFFECT_SPECS if n in BUILT_IN):
         eff = moderate_effect(name, np.random.default_rng([5, j]))
         rows, fit, _ = blind_case(np.random.default_rng([6, j]), [eff], n_runs=20, n_cycles=40)
         fb = batch_of(fit)

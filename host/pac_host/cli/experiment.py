@@ -8,7 +8,12 @@ from pathlib import Path
 
 import click
 
-from pac_host.cli.options import effect_option, load_with_effects, progress_enabled
+from pac_host.cli.options import (
+    effect_option,
+    effects_module_option,
+    load_with_effects,
+    progress_enabled,
+)
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
@@ -33,6 +38,7 @@ from pac_host.plots import experiment_plots
 @click.option("--actual", "actual_spec", default="shifted", show_default=True,
               metavar="measured|shifted|FILE", help="The simulated actual robot's table.")
 @effect_option()
+@effects_module_option()
 @click.option("--model", "model_spec", default="measured", show_default=True,
               metavar="measured|shifted|FILE", help="The model the CGA starts on.")
 @click.option("--model-fitness", default="coverage", show_default=True,

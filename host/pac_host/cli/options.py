@@ -8,6 +8,7 @@ import click
 
 from pac_host.errors import InputError
 from pac_host.model import GaitTable, parse_effect, resolve_table
+from pac_host.model.effects_module import load_effects_module
 
 
 def table_option(default: str = "measured", help_text: str | None = None):
@@ -28,6 +29,30 @@ def effect_option():
         multiple=True,
         metavar="NAME:P=V,...",
         help="Add an unmodelled effect, e.g. transition:alpha=0.3 (repeatable).",
+    )
+
+
+def _load_modules(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) -> None:
+    try:
+        for path in value:
+            load_effects_module(path)
+    except InputError as e:  # raised while parsing, before the command's own error handling
+        click.echo(f"{ctx.find_root().info_name}: error: {e}", err=True)
+        ctx.exit(e.exit_code)
+
+
+def effects_module_option():
+    """``--effects-module FILE`` (repeatable): user-defined effects, loaded before any other
+    option is used, so tables and ``--effect`` may name them."""
+    return click.option(
+        "--effects-module",
+        multiple=True,
+        metavar="FILE.py",
+        is_eager=True,
+        expose_value=False,
+        callback=_load_modules,
+        help="Python file defining effects with pac_host.model.effects.register_effect "
+             "(repeatable; see docs/diagnose.md).",
     )
 
 
