@@ -56,3 +56,19 @@ def test_a_payload_change_between_runs_is_a_sudden_change():
                                                                            abs=0.05)
     h = u["proposal"]["holdout"]
     assert h["rollout_cm_after"] < 0.6 * h["rollout_cm_model"] and h["shrink_over_library"] > 0.5
+
+
+def test_a_heading_pull_and_a_warm_up_are_described_in_numbers():
+    d, truth = _outside("heading_pull", 1, 3)
+    u = d.unexplained
+    assert d.verdict == "partly_unexplained" and u["kind"] == "heading"
+    size = _number(u["description"], r"by up to \+?([\d.]+) deg")
+    at = _number(u["description"], r"most at heading (\d+) deg")
+    assert size == pytest.approx(truth["deg_per_cycle"], rel=0.25)
+    # dH = c sin(toward - h) is largest 90 degrees before the heading it pulls towards
+    assert (at - (truth["toward"] - 90) + 180) % 360 - 180 == pytest.approx(0, abs=20)
+    d, truth = _outside("warmup", 1, 3)
+    u = d.unexplained
+    assert d.verdict == "partly_unexplained" and u["kind"] == "time_since_power_on"
+    loss = _number(u["description"], r"-(\d+)% at 0 cycles") / 100
+    assert loss == pytest.approx(truth["cold_loss"], abs=0.06)

@@ -110,3 +110,18 @@ def test_stall_end_to_end_through_simulate_pac_sim_and_diagnose(tmp_path, clean_
     forget_user_effects()
     res = _invoke("diagnose", "--model", "shifted", "--runs", str(runs), "--seed", "1")
     assert "stall" not in res.output and "partly_unexplained" in res.output  # no module
+
+
+def test_every_command_that_takes_an_effect_takes_the_module():
+    from pac_sim.cli import main as sim
+
+    def params(cmd):
+        return {p.name for p in cmd.params} | {o for p in cmd.params for o in p.opts}
+
+    for path in (["simulate"], ["experiment"], ["evolve"], ["measure"], ["diagnose"],
+                 ["table", "show"], ["table", "export"]):
+        cmd = main
+        for name in path:
+            cmd = cmd.commands[name]
+        assert "--effects-module" in params(cmd), path
+    assert "--effects-module" in params(sim)

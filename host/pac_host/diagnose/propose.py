@@ -409,8 +409,8 @@ def _end_error(prob: Problem, poses: np.ndarray) -> np.ndarray:
 
 
 def fit_family(fam: Family, fit_p: Problem, effects: Sequence[Effect], chron_fit: np.ndarray):
-    """Best (hyper, chosen columns, coefficients, bic, fit gain) of a family on the fitting
-    runs, on top of the model plus ``effects``."""
+    """Best (hyper, chosen columns, coefficients, bic, fit gain, standard errors) of a family
+    on the fitting runs, on top of the model plus ``effects``."""
     ctx = context(fit_p, effects, chron_fit)
     w = fit_p.whitened(effects)
     through = _through(fit_p, effects)
@@ -421,8 +421,16 @@ def fit_family(fam: Family, fit_p: Problem, effects: Sequence[Effect], chron_fit
         xw = _whiten_cols(fit_p, cols)
         chosen, coef, bic = _stepwise(xw, w, fam.n_hyper)
         if chosen and (best is None or bic < best[3]):
-            gain = float(w @ w - ((w - xw[:, chosen] @ coef) ** 2).sum())
-            best = (hyper, chosen, coef, bic, gain)
+            x = xw[:, chosen]
+            r = w - x @ coef
+            gain = float(w @ w - r @ r)
+            # standard errors from the curvature, scaled by the residual variance
+            s2 = float(r @ r) / max(len(w) - len(chosen), 1)
+            try:
+                se = np.sqrt(np.maximum(np.diag(np.linalg.inv(x.T @ x)) * s2, 0.0))
+            except np.linalg.LinAlgError:
+                se = np.full(len(chosen), np.nan)
+            best = (hyper, chosen, coef, bic, gain, se)
     return best
 
 
@@ -462,7 +470,7 @@ def propose(fit_p: Problem, hold_p: Problem, effects: Sequence[Effect], chron_fi
             options.append((bic, base, best))
         if not options:
             continue
-        _, base, (hyper, chosen, coef, _, gain) = min(options, key=lambda t: t[0])
+        _, base, (hyper, chosen, coef, _, gain, se) = min(options, key=lambda t: t[0])
         hctx = context(hold_p, base, chron_hold)
         delta = _delta(fam, hctx, hyper, chosen, coef)
         res = step_residuals(hold_p.rows, hold_p.batch,
@@ -473,8 +481,9 @@ def propose(fit_p: Problem, hold_p: Problem, effects: Sequence[Effect], chron_fi
         end1 = _end_error(hold_p, _replay(hold_p, base, fam, hyper, chosen, coef, chron_hold))
         shrink = 1.0 - end1.sum() / end_model.sum() if end_model.sum() > 0 else 0.0
         _, names = fam.columns(context(fit_p, base, chron_fit), hyper)
-        terms = [{"term": names[k], "coefficient": round(float(c), 5)}
-                 for k, c in zip(chosen, coef, strict=True)]
+        terms = [{"term": names[k], "coefficient": round(float(c), 5),
+                  "interval_95": [round(float(c - 1.96 * e), 5), round(float(c + 1.96 * e), 5)]}
+                 for k, c, e in zip(chosen, coef, se, strict=True)]
         prop = Proposal(fam.name, fam.name, terms, hyper, gain, float(w0 @ w0 - w1 @ w1), z,
                         min(1.0, p * len(FAMILIES)), float(shrink),
                         (float(end_model.mean()), float(end0.mean()), float(end1.mean())))
@@ -503,32 +512,60 @@ def propose(fit_p: Problem, hold_p: Problem, effects: Sequence[Effect], chron_fi
 
 def describe(prop: Proposal, prob: Problem, ctx: Context, fam: Family, chosen, coef) -> str:
     """Words and numbers: what the term does, in the units of the moves."""
-    delta = _delta(fam, ctx, prop.hyper, chosen, coef)[prob.batch.mask]
-    amp = np.sqrt(2.0) * np.sqrt((delta**2).mean(axis=0))  # a sine's amplitude from its rms
-    j = int(np.argmax(amp / np.array([1.0, 1.0, 1.0])))
+    delta = _delta(fam, ctx, prop.hyper, chosen, coef)
+    flat = delta[prob.batch.mask]
+    amp = np.sqrt(2.0) * np.sqrt((flat**2).mean(axis=0))  # a sine's amplitude from its rms
+    j = int(np.argmax(amp))
     unit = "deg" if j == 2 else "cm"
     what = KIND_WORDS[fam.name]
     if fam.name == "periodic":
         return (f"{what}, period about {prop.hyper:.1f} gait cycles, amplitude about "
                 f"{amp[j]:.1f} {unit} on {COMPONENTS[j]}")
     if fam.name == "sudden_change":
-        rel = _relative_change(ctx, delta)
+        after = prob.batch.mask & (ctx.chron >= prop.hyper)[:, None]
+        rel = _relative_change(ctx, delta, after)
         return f"{what}: from {prop.hyper:.0%} of the runs on, the move is {rel}"
-    size = float(np.abs(delta[:, j]).max())
+    if fam.name == "position":
+        axis, lo, hi = prop.hyper
+        where = f"{lo:.0f} <= {'xy'[axis]} < {hi:.0f} cm".replace("-inf <= ", "").replace(
+            " < inf cm", " cm and beyond")
+        inside = (_band(ctx, axis, lo, hi) > 0) & prob.batch.mask
+        return f"{what}: where {where} the move is {_relative_change(ctx, delta, inside)}"
+    if fam.name == "time_since_power_on":  # the term on a time line, as a share of the move
+        n = 301
+        line = Batch(("t",), np.zeros((1, n), dtype=np.int64), np.ones((1, n), dtype=bool),
+                     np.zeros((1, n + 1, 3)), np.zeros(1, dtype=np.int64), np.array([n]))
+        g = Context(line, np.ones((1, n, 3)), np.zeros((1, n, 3)), ctx.chron)
+        cols, _ = fam.columns(g, prop.hyper)
+        rel = sum(c * cols[k][0] for k, c in zip(chosen, coef, strict=True))
+        jj = int(np.argmax(np.abs(rel).max(axis=0)))
+        return (f"{what}: {COMPONENTS[jj]} "
+                + ", ".join(f"{rel[t, jj]:+.0%} at {t} cycles" for t in (0, 50, 150, 300)))
+    if fam.name == "heading":
+        grid = np.arange(0.0, 360.0, 5.0)
+        g = Context(ctx.batch, np.zeros((1, len(grid), 3)),
+                    np.stack([np.zeros_like(grid), np.zeros_like(grid), grid], -1)[None], ctx.chron)
+        cols, _ = fam.columns(g, prop.hyper)
+        curve = sum(c * cols[k][0] for k, c in zip(chosen, coef, strict=True))
+        k = int(np.argmax(np.abs(curve[:, j])))
+        return (f"{what}: {COMPONENTS[j]} changes by up to {curve[k, j]:+.1f} {unit} per gait "
+                f"cycle, most at heading {grid[k]:.0f} deg "
+                f"(and {curve[(k + 36) % 72, j]:+.1f} at {grid[(k + 36) % 72]:.0f})")
+    size = float(np.abs(flat[:, j]).max())
     return f"{what}: up to {size:.1f} {unit} on {COMPONENTS[j]} ({prop.terms[0]['term']}, ...)"
 
 
-def _relative_change(ctx: Context, delta: np.ndarray) -> str:
-    pred = ctx.pred[ctx.batch.mask]
+def _relative_change(ctx: Context, delta: np.ndarray, where: np.ndarray) -> str:
+    """The correction on the steps ``where`` as a share of the model's move, per component."""
+    pred, d = ctx.pred[where], delta[where]
     parts = []
     for j, c in enumerate(COMPONENTS):
-        sel = np.abs(delta[:, j]) > 0
-        if sel.any() and np.abs(pred[sel, j]).sum() > 0:
-            r = float((delta[sel, j] * np.sign(pred[sel, j])).sum()
-                      / np.abs(pred[sel, j]).sum())
+        scale = np.abs(pred[:, j]).sum()
+        if scale > 0:
+            r = float((d[:, j] * np.sign(pred[:, j])).sum() / scale)
             if abs(r) >= 0.01:
                 parts.append(f"{c} {r:+.0%}")
-    return ", ".join(parts) or "changed"
+    return ", ".join(parts) or "unchanged"
 
 
 # --- intermittent: a mixture of per-step scales --------------------------------------------
