@@ -55,7 +55,9 @@ class Cell:
     actual: GaitTable
 
     def label(self, keys: list[str]) -> str:
-        return ", ".join(f"{k}={_short(self.settings.get(k))}" for k in keys) or self.id
+        """The cell's values of ``keys`` (the settings that vary), those it sets."""
+        return ", ".join(f"{k}={_short(self.settings[k])}" for k in keys
+                         if k in self.settings) or self.id
 
 
 def _short(v: Any) -> str:
