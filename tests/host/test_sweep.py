@@ -259,3 +259,9 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, text, extra, message):
     assert message in res.output
     assert "Traceback" not in res.output
     assert len(res.output.strip().splitlines()) == 1
+
+
+def test_the_documented_example_sweep_is_valid():
+    cells = load_sweep(Path(__file__).resolve().parents[2] / "docs" / "sweep-example.toml")
+    assert len(cells) == 2 * 2 * 3 + 3
+    assert all(c.config.seeds == 30 for c in cells)

@@ -1,0 +1,63 @@
+"""Sweep benchmark: cells per minute on a Dask LocalCluster of 1 and of 2 worker processes.
+
+The same sweep (a grid of methods and model fitnesses, each cell a small experiment of several
+seeds) runs in this process, then on a LocalCluster of 1 worker and of 2 workers; the cluster's
+start-up is timed apart from the sweep, and the machine's load average is recorded before and
+after. Every engine must give the same results table, byte for byte. The target is the speed-up
+of 2 workers over 1 on this 2-core machine (ideal 2; other work on the machine lowers it, so the
+figure depends on the load when it was measured).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from pathlib import Path
+
+from pac_host.executors import InProcess, dask_executor
+from pac_host.sweep import parse_sweep, run_sweep
+
+
+def _spec(quick: bool) -> dict:
+    return {
+        "settings": {"seeds": 2 if quick else 4, "generations": 80 if quick else 200,
+                     "initial_generations": 50 if quick else 200, "optimum_runs": 2,
+                     "optimum_generations": 100 if quick else 300, "budget": 200},
+        "grid": {"methods": ["full", "partial"], "model_fitness": ["coverage", "steps"]},
+    }
+
+
+def _timed(cells, out: Path, engine) -> tuple[float, bytes]:
+    t0 = time.perf_counter()
+    run_sweep(cells, out, engine)
+    return time.perf_counter() - t0, (out / "results.json").read_bytes()
+
+
+def run(quick: bool) -> dict:
+    cells = parse_sweep(_spec(quick))
+    res: dict = {"cells": len(cells), "sweep": _spec(quick),
+                 "load_average_before": round(os.getloadavg()[0], 2)}
+    with tempfile.TemporaryDirectory() as tmp:
+        seconds, reference = _timed(cells, Path(tmp) / "in_process", InProcess())
+        res["in_process"] = {"seconds": round(seconds, 2),
+                             "cells_per_minute": round(len(cells) * 60 / seconds, 2)}
+        for workers in (1, 2):
+            t0 = time.perf_counter()
+            engine = dask_executor(None, workers)
+            start = time.perf_counter() - t0
+            with engine:
+                seconds, table = _timed(cells, Path(tmp) / f"workers_{workers}", engine)
+            res[f"workers_{workers}"] = {
+                "seconds": round(seconds, 2), "cluster_start_s": round(start, 2),
+                "cells_per_minute": round(len(cells) * 60 / seconds, 2),
+                "same_results_as_in_process": table == reference}
+    res["load_average_after"] = round(os.getloadavg()[0], 2)  # other work on the machine
+    ratio = res["workers_2"]["cells_per_minute"] / res["workers_1"]["cells_per_minute"]
+    res["speedup_2_over_1"] = round(ratio, 3)
+    same = all(res[f"workers_{w}"]["same_results_as_in_process"] for w in (1, 2))
+    res["targets"] = {
+        "speedup_2_workers": {"value": round(ratio, 3), "target": 1.7, "met": ratio >= 1.7},
+        "same_results_on_every_engine": {"value": same, "target": True, "met": same},
+    }
+    return res
