@@ -20,6 +20,12 @@ from pac_host.errors import InputError, PacError
 
 Done = Callable[[object], None] | None
 
+# Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers; that turns glibc's adaptive mmap
+# threshold off, so numpy's temporaries are mapped and unmapped on every call: the coverage
+# simulator then takes 25-35% more CPU time on a worker than in this process (measured). Our
+# workers keep glibc's default (a remote cluster's: see docs/sweep.md).
+WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+
 
 class Executor:
     """Maps a function over argument tuples; ``done`` sees each result as it arrives.
@@ -125,11 +131,13 @@ def dask_executor(scheduler: str | None = None, jobs: int = 1,
                   timeout: float = 10.0) -> DaskExecutor:
     """A client of the running scheduler at ``scheduler`` (``tcp://HOST:8786``), or of a new
     ``LocalCluster`` of ``jobs`` single-threaded worker processes."""
+    import dask
     from distributed import Client, LocalCluster
 
     if scheduler is None:
-        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+        with dask.config.set(WORKER_CONFIG):
+            cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
         return DaskExecutor(Client(cluster), cluster)
     logging.getLogger("distributed").setLevel(logging.ERROR)
     try:
