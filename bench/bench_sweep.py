@@ -10,12 +10,15 @@ figure depends on the load when it was measured).
 
 from __future__ import annotations
 
+import logging
 import os
 import tempfile
 import time
 from pathlib import Path
 
-from pac_host.executors import InProcess, dask_executor
+from pac_host.executors import WORKER_CONFIG, DaskExecutor, InProcess, dask_executor
+from pac_host.experiment import ExperimentConfig, optimum_run
+from pac_host.model import shifted_table
 from pac_host.sweep import parse_sweep, run_sweep
 
 
@@ -32,6 +35,38 @@ def _timed(cells, out: Path, engine) -> tuple[float, bytes]:
     t0 = time.perf_counter()
     run_sweep(cells, out, engine)
     return time.perf_counter() - t0, (out / "results.json").read_bytes()
+
+
+def _task_cpu(k: int, cfg: ExperimentConfig) -> float:
+    """CPU seconds of one CGA run, measured inside the task."""
+    t0 = time.process_time()
+    optimum_run(shifted_table(), k, cfg)
+    return time.process_time() - t0
+
+
+def task_cpu_seconds(repeats: int) -> dict:
+    """One task's CPU time in this process, on a worker of ours, and on a worker with Dask's
+    default MALLOC_TRIM_THRESHOLD_ (which turns glibc's adaptive allocator off)."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    cfg = ExperimentConfig(optimum_generations=300)
+    args = [(k, cfg) for k in range(repeats)]
+    out = {"in_process": InProcess().map(_task_cpu, args)}
+    with dask_executor(None, 1) as engine:
+        out["worker"] = engine.map(_task_cpu, args)
+    env = dict(os.environ)
+    try:  # last: Dask's nanny leaves the variable in this process's environment
+        with dask.config.set({k: 65536 for k in WORKER_CONFIG}):
+            cluster = LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None,
+                                   silence_logs=logging.ERROR)
+        with DaskExecutor(Client(cluster), cluster) as d:
+            out["worker_dask_default_malloc"] = d.map(_task_cpu, args)
+    finally:
+        os.environ.clear()
+        os.environ.update(env)
+    return {k: {"median_s": round(sorted(v)[len(v) // 2], 3),
+                "range_s": [round(min(v), 3), round(max(v), 3)]} for k, v in out.items()}
 
 
 def run(quick: bool) -> dict:
@@ -52,6 +87,7 @@ def run(quick: bool) -> dict:
                 "seconds": round(seconds, 2), "cluster_start_s": round(start, 2),
                 "cells_per_minute": round(len(cells) * 60 / seconds, 2),
                 "same_results_as_in_process": table == reference}
+    res["task_cpu_seconds"] = task_cpu_seconds(3 if quick else 7)
     res["load_average_after"] = round(os.getloadavg()[0], 2)  # other work on the machine
     ratio = res["workers_2"]["cells_per_minute"] / res["workers_1"]["cells_per_minute"]
     res["speedup_2_over_1"] = round(ratio, 3)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import CancelledError, ProcessPoolExecutor
 
 from pac_host.errors import InputError, PacError
 
@@ -116,8 +116,12 @@ class DaskExecutor(Executor):
                     done(res)
             return [f.result() for f in futs]
         except KilledWorker as e:
-            raise PacError(f"a task killed {e.args[0] if e.args else 'several'} workers in a "
-                           "row and was given up; finished work is on disk (--resume)") from None
+            raise PacError(f"the cluster gave a task up after it killed workers ({e}); finished "
+                           "work is on disk: rerun with --resume") from None
+        except CancelledError as e:  # the scheduler went away, or this client was closed
+            why = str(e).splitlines()[0] if str(e) else "tasks cancelled"
+            raise PacError(f"lost the Dask cluster ({why}); finished work is on disk: rerun "
+                           "with --resume") from None
         finally:
             self.client.cancel([f for f in futs if not f.done()])
 
@@ -139,7 +143,9 @@ def dask_executor(scheduler: str | None = None, jobs: int = 1,
             cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
         return DaskExecutor(Client(cluster), cluster)
-    logging.getLogger("distributed").setLevel(logging.ERROR)
+    for name in ["distributed", *logging.root.manager.loggerDict]:  # errors reach the user
+        if name.startswith("distributed"):                         # as ours, in one line
+            logging.getLogger(name).setLevel(logging.CRITICAL)
     try:
         client = Client(scheduler, timeout=timeout)
     except (OSError, ValueError, TypeError) as e:

@@ -261,6 +261,14 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, text, extra, message):
     assert len(res.output.strip().splitlines()) == 1
 
 
+def test_experiment_with_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
+    res = CliRunner().invoke(main, ["experiment", "--out", str(tmp_path), "--scheduler",
+                                    "tcp://127.0.0.1:1", "--connect-timeout", "0.5"])
+    assert res.exit_code == 2, res.output
+    assert res.output.startswith("pac-host: error: cannot reach the Dask scheduler")
+    assert len(res.output.strip().splitlines()) == 1
+
+
 def test_the_documented_example_sweep_is_valid():
     cells = load_sweep(Path(__file__).resolve().parents[2] / "docs" / "sweep-example.toml")
     assert len(cells) == 2 * 2 * 3 + 3
