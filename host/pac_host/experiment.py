@@ -23,6 +23,7 @@ import json
 import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -236,14 +237,14 @@ def pal_run_detached(*args) -> tuple[dict, str]:
     with the result, to be appended once the run is whole (a rerun never writes twice)."""
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "log.jsonl"
-        result = pal_run(*args, log)
+        result = pal_run(*args, log_path=log)
         return result, log.read_text() if log.exists() else ""
 
 
 def _map_pal_runs(args: list[tuple], jobs: int | Executor, log_path: Path,
                   done: Callable[[object], None]) -> list[dict]:
     if not isinstance(jobs, Executor) or jobs.shares_files:
-        return _map(pal_run, [(*a, log_path) for a in args], jobs, done)
+        return _map(partial(pal_run, log_path=log_path), args, jobs, done)
 
     def landed(res: tuple[dict, str]) -> None:
         with open(log_path, "a") as f:
