@@ -290,9 +290,14 @@ class ManualObserver:
 
 
 def open_observer(spec: str, ask: Ask | None = None, manual_mode: str = "figures",
-                  timeout: float = TRACKER_TIMEOUT_S) -> Observer:
-    """``tracker:HOST:PORT``, ``pipe:PATH`` or ``manual`` (needs ``ask``)."""
+                  timeout: float = TRACKER_TIMEOUT_S, world: object | None = None) -> Observer:
+    """``tracker:HOST:PORT``, ``pipe:PATH``, ``camera:SOURCE[,options]`` or ``manual`` (needs
+    ``ask``); ``world`` is the built-in emulator's, for ``camera:sim``."""
     kind, _, rest = spec.partition(":")
+    if kind == "camera":
+        from pac_host.camera.observer import open_camera
+
+        return open_camera(rest, world)
     if kind == "tracker":
         host, sep, port = rest.rpartition(":")
         if not sep or not port.isdigit() or not 0 < int(port) < 65536:
@@ -304,4 +309,5 @@ def open_observer(spec: str, ask: Ask | None = None, manual_mode: str = "figures
         if ask is None:
             raise InputError("--observer manual needs an operator at a prompt")
         return ManualObserver(ask, manual_mode)
-    raise InputError(f"--observer: expected tracker:HOST:PORT, pipe:PATH or manual, got {spec!r}")
+    raise InputError(f"--observer: expected tracker:HOST:PORT, pipe:PATH, camera:SOURCE or "
+                     f"manual, got {spec!r}")
