@@ -57,12 +57,13 @@ def detect(detector: cv2.aruco.ArucoDetector, frame: np.ndarray,
 
 
 def refine_corners(gray: np.ndarray, corners: np.ndarray, inside: float = 1.5,
-                   outside: float = 2.5, samples: int = 10) -> np.ndarray:
+                   outside: float = 3.0, samples: int = 10) -> np.ndarray:
     """Sub-pixel corners (4, 2) of a marker: each side's edge is found where the intensity
     crosses half-way from the black border to the white margin, on ``samples`` profiles across
     the side (away from the corners), a line is fitted to those edge points, and adjacent
     sides' lines are intersected. Unbiased for a blurred straight edge, unlike the contour's
-    polygon; returns the input where a side gives no clean edge."""
+    polygon (which lies up to a pixel inside a small marker); returns the input where a side
+    gives no clean edge."""
     c = np.asarray(corners, dtype=np.float64)
     a, b = c, np.roll(c, -1, axis=0)  # side k runs from corner k to corner k + 1
     d = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
@@ -75,12 +76,14 @@ def refine_corners(gray: np.ndarray, corners: np.ndarray, inside: float = 1.5,
     prof = cv2.remap(gray, pts[..., 0].reshape(4 * samples, -1),
                      pts[..., 1].reshape(4 * samples, -1), cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
-    lo = prof[:, steps <= 0].min(axis=1)
-    hi = prof[:, steps >= 0].max(axis=1)
+    k = np.argmin(np.where(steps <= 0.5, prof, np.inf), axis=1)  # the border's darkest
+    after = np.arange(len(steps))[None, :] > k[:, None]
+    lo = prof[np.arange(len(k)), k]
+    hi = np.where(after, prof, -np.inf).max(axis=1)
     level = (lo + hi) / 2
-    above = prof >= level[:, None]
+    above = after & (prof >= level[:, None])
     j = np.argmax(above, axis=1)
-    if np.any(hi - lo < 20) or np.any(j == 0):
+    if np.any(hi - lo < 20) or not np.all(above.any(axis=1)):
         return c
     rows = np.arange(len(j))
     f0, f1 = prof[rows, j - 1], prof[rows, j]

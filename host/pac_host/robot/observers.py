@@ -32,6 +32,9 @@ from pac_host.errors import InputError, PacError
 
 TRACKER_TIMEOUT_S = 3.0  # a camera's pose for a finished gait cycle should come well within this
 POWER_ON_MOD = 65536  # the Stamp's power-on count wraps at 16 bits
+# A stream that opens with this header wants to be asked: `CYCLE power_on index` for each gait
+# cycle (``pac-host camera serve``), and answers a POSE line or `LOST power_on why`.
+ASK_HEADER = "# pac-host camera"
 
 Record = Callable[[dict], None]
 Ask = Callable[[str], str]
@@ -165,10 +168,13 @@ class TrackerObserver:
         self._poses: list[tuple[float, float, float]] = []
         self._record: Record = lambda _: None
         self._run_id = ""
+        self._ask = False  # the stream answers requests (see ASK_HEADER)
+        self._asked = 0
 
     def begin(self, run_id: str, power_on_before: int, record: Record) -> None:
         self._run_id, self._n0, self._record = run_id, power_on_before, record
         self._poses = []
+        self._asked = 0
 
     def on_cycle(self, power_on: int) -> None:
         self._take_until((power_on - self._n0) % POWER_ON_MOD)
@@ -181,14 +187,24 @@ class TrackerObserver:
         """Read lines until the pose after gait cycle ``k`` of this run is in hand."""
         while len(self._poses) < k:
             want = len(self._poses) + 1
+            if self._ask and self._asked < want:
+                self.source.write_line(f"CYCLE {(self._n0 + want) % POWER_ON_MOD} {want}")
+                self._asked = want
             line = self.source.readline(self.timeout)
             if line is None:
                 raise ObserverError(
                     f"observer {self.name}: no pose for gait cycle {want} of run {self._run_id} "
                     f"within {self.timeout:g} s (is the tracker running and seeing the robot?)"
                 )
+            if line.startswith(ASK_HEADER):
+                self._ask = True
+                continue
             if not line.strip() or line.startswith("#"):
                 continue
+            if line.startswith("LOST"):
+                why = line.split(None, 2)[2] if len(line.split(None, 2)) == 3 else "lost"
+                raise ObserverError(f"observer {self.name}: lost observation of gait cycle "
+                                    f"{want} of run {self._run_id}: {why}")
             try:
                 p = parse_pose_line(line)
             except ValueError as e:
