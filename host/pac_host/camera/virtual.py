@@ -15,7 +15,7 @@ from pac_host.camera.render import Imaging, Renderer, board_poses, standard_came
 from pac_host.camera.sources import RenderSource
 
 LENS_IMAGES = 10
-_CALIBRATIONS: dict[tuple, Calibration] = {}  # the same virtual camera calibrates the same
+_RIGS: dict[tuple, tuple[Renderer, Calibration]] = {}  # the same camera calibrates the same
 
 
 def calibrate_virtual(renderer: Renderer, rng: np.random.Generator,
@@ -26,6 +26,16 @@ def calibrate_virtual(renderer: Renderer, rng: np.random.Generator,
                           for p in board_poses(renderer.camera, board, images, rng))
     return calibrate_floor([renderer.frame(None, rng) for _ in range(floor_frames)],
                            renderer.layout, lens)
+
+
+def reference_rig(noise: float = 3.0, seed: int = 0) -> tuple[Renderer, Calibration]:
+    """The reference camera's renderer and its calibration (made once per process)."""
+    key = (float(noise), int(seed))
+    if key not in _RIGS:
+        renderer = Renderer(standard_camera(), Layout(), Imaging(noise=noise))
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
+        _RIGS[key] = renderer, calibrate_virtual(renderer, rng)
+    return _RIGS[key]
 
 
 def world_pose(world, key: int | None) -> Sequence[float]:
@@ -40,12 +50,6 @@ def world_pose(world, key: int | None) -> Sequence[float]:
 
 def sim_source(world, opts, calib: Calibration | None = None
                ) -> tuple[RenderSource, Calibration]:
-    renderer = Renderer(standard_camera(), Layout(), Imaging(noise=opts.noise))
-    if calib is None:
-        key = (opts.noise, opts.seed)
-        if key not in _CALIBRATIONS:
-            rng = np.random.default_rng(np.random.SeedSequence([opts.seed, 1]))
-            _CALIBRATIONS[key] = calibrate_virtual(renderer, rng)
-        calib = _CALIBRATIONS[key]
+    renderer, own = reference_rig(opts.noise, opts.seed)
     rng = np.random.default_rng(np.random.SeedSequence([opts.seed, 2]))
-    return RenderSource(renderer, lambda key: world_pose(world, key), rng), calib
+    return RenderSource(renderer, lambda key: world_pose(world, key), rng), calib or own
