@@ -74,3 +74,25 @@ def test_heading_is_unwrapped_near_the_reference(rig):
     assert abs(got[2] - 719.0) < 1.5
     got, _, _ = finder.in_window([rig[0].frame((90, 150, -181.0), rng)], -170.0)
     assert abs(got[2] + 181.0) < 1.5
+
+
+def test_without_a_lens_calibration_the_homography_places_the_camera():
+    """A lens without distortion needs no board: the focal length comes from the tilted
+    floor's homography; a camera looking straight down needs its height given."""
+    import pytest
+
+    from pac_host.camera.calibrate import calibrate_floor
+    from pac_host.camera.geometry import Camera
+    from pac_host.camera.render import Renderer, standard_camera
+    from pac_host.errors import InputError
+
+    rng = np.random.default_rng(2)
+    tilted = standard_camera(dist=(0, 0, 0, 0, 0))
+    cal = calibrate_floor([Renderer(tilted).frame(None, rng)])
+    assert cal.lens is None and np.linalg.norm(cal.center - tilted.center) < 10
+    down = Camera.looking_at((640, 480), 420.0, (90, 150, 250), (90, 150, 0), (0, 1, 0))
+    frame = Renderer(down).frame(None, rng)
+    with pytest.raises(InputError, match="give --camera-height"):
+        calibrate_floor([frame])
+    cal = calibrate_floor([frame], camera_height=250.0)
+    assert np.linalg.norm(cal.center - down.center) < 2

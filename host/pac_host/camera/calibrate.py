@@ -25,12 +25,13 @@ import numpy as np
 
 from pac_host.camera.detect import Corners, detect, make_detector
 from pac_host.camera.geometry import undistort
-from pac_host.camera.layout import Board, Layout, floor_corners
+from pac_host.camera.layout import DEFAULT_BOARD, DEFAULT_LAYOUT, Board, Layout, floor_corners
 from pac_host.errors import InputError
 from pac_host.files import write_atomic
 
 FORMAT = "pac-camera-calibration/1"
 MIN_FLOOR_MARKERS = 4
+MIN_TILT_DEG = 6.0  # a view closer to square-on than this does not tell the focal length
 
 
 @dataclass(frozen=True)
@@ -122,7 +123,7 @@ def load(path: Path | str) -> Calibration:
 # ---- the lens --------------------------------------------------------------------------------
 
 
-def calibrate_lens(frames: Iterable[np.ndarray], board: Board = Board(),
+def calibrate_lens(frames: Iterable[np.ndarray], board: Board = DEFAULT_BOARD,
                    min_images: int = 5) -> Lens:
     """Intrinsics and distortion from frames of the ChArUco board (at least ``min_images``
     showing at least 6 of its corners)."""
@@ -174,13 +175,14 @@ def focal_from_homography(H_floor_to_img: np.ndarray, principal: Sequence[float]
     if not w > 0:
         return None
     f = float(1 / np.sqrt(w))
-    # a square-on view leaves the constraints near 0 = 0: too weak to trust
-    if np.linalg.norm(b) / np.linalg.norm(a) / w < 1e-3:
-        return None
-    return f
+    # a square-on view leaves both constraints near 0 = 0: too weak to trust
+    M = np.diag([1 / f, 1 / f, 1.0]) @ A
+    r3 = np.cross(M[:, 0] / np.linalg.norm(M[:, 0]), M[:, 1] / np.linalg.norm(M[:, 1]))
+    tilt = np.degrees(np.arccos(min(1.0, abs(r3[2]) / np.linalg.norm(r3))))
+    return f if tilt >= MIN_TILT_DEG else None
 
 
-def calibrate_floor(frames: Iterable[np.ndarray], layout: Layout = Layout(),
+def calibrate_floor(frames: Iterable[np.ndarray], layout: Layout = DEFAULT_LAYOUT,
                     lens: Lens | None = None, camera_height: float | None = None
                     ) -> Calibration:
     """The floor homography and the camera's position from frames showing the floor markers."""

@@ -106,3 +106,7 @@ def heading_rotation(h_deg: float) -> np.ndarray:
     """Maps a marker-frame vector (x right, y forward) to the floor for compass heading h."""
     h = np.radians(h_deg)
     return np.array([[np.cos(h), np.sin(h)], [-np.sin(h), np.cos(h)]])
+
+
+DEFAULT_LAYOUT = Layout()
+DEFAULT_BOARD = Board()

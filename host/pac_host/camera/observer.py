@@ -97,8 +97,9 @@ class PoseFinder:
         if not (AREA_X[0] - m <= x <= AREA_X[1] + m and y >= AREA_Y[0] - m):
             return f"robot marker seen at ({x:.1f}, {y:.1f}) cm, off the area"
         if prev is not None and np.hypot(x - prev[0], y - prev[1]) > self.opts.max_step:
-            return (f"robot marker seen at ({x:.1f}, {y:.1f}) cm, {np.hypot(x - prev[0], y - prev[1]):.0f}"
-                    f" cm from its last pose (at most {self.opts.max_step:g} per gait cycle)")
+            d = np.hypot(x - prev[0], y - prev[1])
+            return (f"robot marker seen at ({x:.1f}, {y:.1f}) cm, {d:.0f} cm from its last "
+                    f"pose (at most {self.opts.max_step:g} per gait cycle)")
         return ""
 
 

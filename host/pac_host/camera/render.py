@@ -21,6 +21,7 @@ from pac_host.camera.layout import (
     AREA_X,
     AREA_Y,
     BLOCK_CM,
+    DEFAULT_LAYOUT,
     Board,
     Layout,
     dictionary,
@@ -88,7 +89,7 @@ def _cells(dict_name: str) -> int:
 class Renderer:
     """Frames of one camera looking at one layout; the floor's rays are computed once."""
 
-    def __init__(self, camera: Camera, layout: Layout = Layout(),
+    def __init__(self, camera: Camera, layout: Layout = DEFAULT_LAYOUT,
                  imaging: Imaging = Imaging()) -> None:
         self.camera, self.layout, self.imaging = camera, layout, imaging
         s = imaging.supersample

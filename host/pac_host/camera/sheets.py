@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pac_host.camera.layout import Board, Layout, dictionary
+from pac_host.camera.layout import DEFAULT_BOARD, DEFAULT_LAYOUT, Board, Layout, dictionary
 
 A4_CM = (21.0, 29.7)
 INCH = 2.54
@@ -42,7 +42,7 @@ def _framed(img: np.ndarray, pad: int) -> np.ndarray:
     return out
 
 
-def write_sheets(path: Path, layout: Layout = Layout(), board: Board = Board()) -> int:
+def write_sheets(path: Path, layout: Layout = DEFAULT_LAYOUT, board: Board = DEFAULT_BOARD) -> int:
     """Write the PDF; returns the number of pages."""
     from matplotlib.backends.backend_pdf import PdfPages
 
@@ -81,7 +81,7 @@ def write_sheets(path: Path, layout: Layout = Layout(), board: Board = Board()) 
     return pages
 
 
-def write_floor_plan(path: Path, layout: Layout = Layout()) -> None:
+def write_floor_plan(path: Path, layout: Layout = DEFAULT_LAYOUT) -> None:
     """A PNG of where the floor markers go (the area, its blocks, each marker's id)."""
     import matplotlib.pyplot as plt
 
