@@ -100,3 +100,29 @@ def test_serve_feeds_the_tracker_observer(rig):
     finally:
         server.close()
         t.join(timeout=5)
+
+
+def test_a_video_file_gives_frames_per_window(rig, tmp_path):
+    """camera:VIDEO,calib=FILE,frames=2 reads two frames per gait cycle in order."""
+    import cv2
+
+    path = [(45.0 + 12 * i, 30.0, 90.0) for i in range(3)]
+    video = tmp_path / "run.avi"
+    out = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 30, (640, 480), False)
+    rng = np.random.default_rng(4)
+    for p in path:
+        for _ in range(2):
+            out.write(rig[0].frame(p, rng))
+    out.release()
+    calib = tmp_path / "calib.json"
+    rig[1].save(calib)
+    obs = open_observer(f"camera:{video},calib={calib},frames=2")
+    try:
+        obs.begin("v1", 100, lambda _: None)
+        for k in (101, 102):
+            obs.on_cycle(k)
+        got = obs.finish(3).poses
+    finally:
+        obs.close()
+    assert np.abs(got - np.array(path))[:, :2].max() < 1.0
+    assert np.abs(got - np.array(path))[:, 2].max() < 2.0

@@ -9,6 +9,7 @@ virtual camera, ``n`` renderings of the robot at the pose ``key`` names.
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections import deque
@@ -32,7 +33,13 @@ class CaptureSource:
     def __init__(self, target: int | str) -> None:
         self.name = f"camera {target}" if isinstance(target, int) else f"video {target}"
         self.live = isinstance(target, int)
-        self._cap = cv2.VideoCapture(target)
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # FFmpeg's own lines too
+        level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # one line, ours
+        try:
+            self._cap = cv2.VideoCapture(target)
+        finally:
+            cv2.utils.logging.setLogLevel(level)
         if not self._cap.isOpened():
             raise InputError(f"{self.name} cannot be opened")
         self._frames: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
