@@ -99,6 +99,10 @@ class FolderSource:
             raise InputError(f"{self.name} holds no images ({', '.join(IMAGE_SUFFIXES)})")
         self._next = 0
 
+    @property
+    def count(self) -> int:
+        return len(self._files)
+
     def window(self, n: int, seconds: float, key: int | None = None) -> list[np.ndarray]:
         out = []
         for _ in range(n):

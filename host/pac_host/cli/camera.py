@@ -37,7 +37,7 @@ def _frames(source: str, n: int | None) -> list:
     src = open_source(source)
     try:
         if isinstance(src, FolderSource) and n is None:
-            n = len(src._files)
+            n = src.count
         try:
             frames = src.window(n or 1, 2.0)
         except ObserverError as e:
@@ -64,8 +64,9 @@ layout_option = click.option("--layout", "layout_path", type=click.Path(dir_okay
 
 @click.group("camera")
 def camera() -> None:
-    """An overhead camera with fiducial markers (docs/camera.md): sheets to print, calibrate,
-    check, serve poses; `--observer camera:...` for evolve and measure."""
+    """An overhead camera with fiducial markers (docs/camera.md): sheets to print, grab frames,
+    calibrate, check, serve poses, render a virtual camera's frames; `--observer camera:...`
+    for evolve and measure."""
     _need_cv2()
 
 
@@ -127,6 +128,40 @@ def render_cmd(out_dir: Path, poses, n_floor: int, n_board: int, noise: float, s
     (out_dir / "truth.json").write_text(json.dumps(truth, indent=1) + "\n")
     click.echo(f"wrote {n_floor} floor, {n_board} board and {len(poses)} robot frames "
                f"to {out_dir}")
+
+
+@camera.command("grab")
+@click.option("--source", required=True, metavar="SOURCE", help="A camera index (or video).")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path))
+@click.option("--count", default=15, show_default=True, type=int)
+@click.option("--every", default=1.5, show_default=True, type=float,
+              help="Seconds between frames (time to move the lens board).")
+def grab_cmd(source, out_dir, count, every) -> None:
+    """Save COUNT frames, one every EVERY seconds, as PNGs (lens board or floor images)."""
+    import time
+
+    import cv2
+
+    from pac_host.camera.sources import open_source
+    from pac_host.robot.observers import ObserverError
+
+    if count < 1 or every < 0:
+        raise InputError("--count must be >= 1 and --every >= 0")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    src = open_source(source)
+    try:
+        for i in range(count):
+            time.sleep(every if i else 0.0)
+            try:
+                frames = src.window(1, 2.0)
+            except ObserverError as e:
+                raise InputError(str(e)) from None
+            if not frames:
+                raise InputError(f"{src.name}: gave no frame within 2 s")
+            cv2.imwrite(str(out_dir / f"{i:03d}.png"), frames[0])
+            click.echo(f"{out_dir / f'{i:03d}.png'}")
+    finally:
+        src.close()
 
 
 @camera.command("calibrate")
