@@ -43,6 +43,11 @@ def test_render_calibrate_check_on_files(tmp_path):
     assert abs(x - 60) < 0.5 and abs(y - 200) < 0.5 and abs(h + 30) < 1.5
     assert cv2.imread(str(png)).shape == (480, 640, 3)
 
+    res = _invoke("camera", "sheets", "--out", tmp_path / "sheets")
+    assert res.exit_code == 0 and "12 A4 pages" in res.output, res.output
+    pdf = (tmp_path / "sheets" / "markers.pdf").read_bytes()
+    assert pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages") == 12
+
     # bad input: too few floor markers, a file of the wrong kind, a camera that is not there
     few = tmp_path / "few"
     few.mkdir()

@@ -16,7 +16,7 @@ from pac_host.robot.observers import ObserverError, open_observer
 
 def _source(rig, path):
     """The virtual camera showing the robot at path[power_on - 1] (None: not in view)."""
-    return RenderSource(rig[0], lambda key: path[key - 1], np.random.default_rng(0))
+    return RenderSource(rig[0], lambda key: path[key - 1], 0)
 
 
 def test_observer_takes_each_cycles_pose_and_reports_a_lost_marker(rig):
@@ -126,3 +126,18 @@ def test_a_video_file_gives_frames_per_window(rig, tmp_path):
         obs.close()
     assert np.abs(got - np.array(path))[:, :2].max() < 1.0
     assert np.abs(got - np.array(path))[:, 2].max() < 2.0
+
+
+def test_the_virtual_cameras_noise_depends_on_the_run_alone(rig):
+    """A resumed run sees the frames an uninterrupted one saw."""
+    path = [(45.0, 30.0, 90.0), (57.0, 31.0, 88.0)]
+    src = _source(rig, path)
+    obs = CameraObserver(src, rig[1], CameraOptions(frames=1), "camera:test")
+
+    def run(run_id):
+        obs.begin(run_id, 0, lambda _: None)
+        obs.on_cycle(1)
+        return obs.finish(2).poses
+
+    a, b = run("g40-t1"), run("g40-t2")
+    assert np.array_equal(run("g40-t1"), a) and not np.array_equal(a, b)

@@ -118,6 +118,9 @@ class CameraObserver:
     def begin(self, run_id: str, power_on_before: int, record: Record) -> None:
         self._run_id, self._n0, self._record = run_id, power_on_before, record
         self._poses = []
+        begin_run = getattr(self.source, "begin_run", None)
+        if begin_run is not None:
+            begin_run(run_id)
 
     def on_cycle(self, power_on: int) -> None:
         i = (power_on - self._n0) % POWER_ON_MOD

@@ -121,14 +121,21 @@ class FolderSource:
 
 
 class RenderSource:
-    """The virtual camera: ``pose_of(key)`` says where the robot is (None: not in view)."""
+    """The virtual camera: ``pose_of(key)`` says where the robot is (None: not in view).
+    Its sensor noise restarts for each run from ``seed`` and the run's id, so a run's frames
+    depend on the run alone (a resumed run sees what an uninterrupted one saw)."""
 
     def __init__(self, renderer: Renderer,
                  pose_of: Callable[[int | None], Sequence[float] | None],
-                 rng: np.random.Generator) -> None:
+                 seed: int = 0) -> None:
         self.name = "virtual camera"
         self.live = False
-        self.renderer, self.pose_of, self.rng = renderer, pose_of, rng
+        self.renderer, self.pose_of, self.seed = renderer, pose_of, seed
+        self.rng = np.random.default_rng(seed)
+
+    def begin_run(self, run_id: str) -> None:
+        key = [self.seed, *run_id.encode()]
+        self.rng = np.random.default_rng(np.random.SeedSequence(key))
 
     def window(self, n: int, seconds: float, key: int | None = None) -> list[np.ndarray]:
         pose = self.pose_of(key)

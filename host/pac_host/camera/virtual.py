@@ -51,5 +51,4 @@ def world_pose(world, key: int | None) -> Sequence[float]:
 def sim_source(world, opts, calib: Calibration | None = None
                ) -> tuple[RenderSource, Calibration]:
     renderer, own = reference_rig(opts.noise, opts.seed)
-    rng = np.random.default_rng(np.random.SeedSequence([opts.seed, 2]))
-    return RenderSource(renderer, lambda key: world_pose(world, key), rng), calib or own
+    return RenderSource(renderer, lambda key: world_pose(world, key), opts.seed), calib or own
