@@ -3,13 +3,16 @@
 An observer follows one run at a time: :meth:`Observer.begin` before it, :meth:`on_cycle` when
 the robot reports a finished gait cycle, :meth:`finish` when it has stopped. Every observation is
 handed to the ``record`` callback (the run's log, which appends and flushes it) before it is
-returned or used. Three kinds:
+returned or used. The kinds:
 
 - :class:`TrackerObserver`: a stream of ``POSE seq gait power_on x y h`` lines (the emulator's
   tracker feed, or an overhead camera) from a TCP socket or a named pipe; gives the pose after
   every gait cycle.
 - :class:`ManualObserver`: the operator types numbers at a prompt the caller provides; either
   the coverage figures of a run or the final pose. A reply that is not a number is asked again.
+- ``camera:...``: an overhead camera read by the host itself
+  (:class:`pac_host.camera.observer.CameraObserver`). A tracker stream that opens with
+  :data:`ASK_HEADER` (``pac-host camera serve``) is asked for each gait cycle's pose.
 
 A malformed line, a closed stream or silence raises :class:`ObserverError` naming the observer;
 nothing is ever filled in with zeros.
