@@ -141,3 +141,27 @@ def test_the_virtual_cameras_noise_depends_on_the_run_alone(rig):
 
     a, b = run("g40-t1"), run("g40-t2")
     assert np.array_equal(run("g40-t1"), a) and not np.array_equal(a, b)
+
+
+def test_a_live_window_takes_only_fresh_frames():
+    """Frames that arrived before the robot's report are stale: never used."""
+    import time
+
+    from pac_host.camera.sources import FrameBuffer
+
+    buf = FrameBuffer()
+    old = np.zeros((2, 2), np.uint8)
+    buf.push(old)
+    assert buf.window(3, 0.05) == []  # the camera stalled: nothing fresh
+    new = np.ones((2, 2), np.uint8)
+
+    def feed():
+        for _ in range(5):
+            time.sleep(0.01)
+            buf.push(new)
+
+    t = threading.Thread(target=feed)
+    t.start()
+    got = buf.window(3, 2.0)
+    t.join()
+    assert len(got) == 3 and all(g is new for g in got)

@@ -26,6 +26,33 @@ from pac_host.robot.observers import ObserverError
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 
+class FrameBuffer:
+    """The last frames of a live camera with their arrival times; a window takes only frames
+    that arrived after it opened (older ones are stale)."""
+
+    def __init__(self, keep: int = 64) -> None:
+        self._frames: deque[tuple[float, np.ndarray]] = deque(maxlen=keep)
+        self._cond = threading.Condition()
+
+    def push(self, frame: np.ndarray, t: float | None = None) -> None:
+        with self._cond:
+            self._frames.append((time.monotonic() if t is None else t, frame))
+            self._cond.notify_all()
+
+    def window(self, n: int, seconds: float) -> list[np.ndarray]:
+        """Up to ``n`` frames arriving within ``seconds`` from now (fewer if the camera is
+        slow, none if it stalled)."""
+        t0 = time.monotonic()
+        deadline = t0 + seconds
+        with self._cond:
+            while True:
+                fresh = [f for t, f in self._frames if t >= t0]
+                rem = deadline - time.monotonic()
+                if len(fresh) >= n or rem <= 0:
+                    return fresh[:n]
+                self._cond.wait(rem)
+
+
 class CaptureSource:
     """A camera (``int`` index: live, captured in a background thread with arrival times) or a
     video file (read in order)."""
@@ -42,8 +69,7 @@ class CaptureSource:
             cv2.utils.logging.setLogLevel(level)
         if not self._cap.isOpened():
             raise InputError(f"{self.name} cannot be opened")
-        self._frames: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
-        self._cond = threading.Condition()
+        self._buffer = FrameBuffer()
         self._stop = threading.Event()
         self._thread = None
         if self.live:
@@ -57,9 +83,7 @@ class CaptureSource:
             if not ok:
                 time.sleep(0.01)
                 continue
-            with self._cond:
-                self._frames.append((time.monotonic(), frame))
-                self._cond.notify_all()
+            self._buffer.push(frame)
 
     def window(self, n: int, seconds: float, key: int | None = None) -> list[np.ndarray]:
         if not self.live:
@@ -70,15 +94,7 @@ class CaptureSource:
                     raise ObserverError(f"{self.name}: no frames left")
                 out.append(frame)
             return out
-        t0 = time.monotonic()
-        deadline = t0 + seconds
-        with self._cond:
-            while True:
-                fresh = [f for t, f in self._frames if t >= t0]
-                rem = deadline - time.monotonic()
-                if len(fresh) >= n or rem <= 0:
-                    return fresh[:n]
-                self._cond.wait(rem)
+        return self._buffer.window(n, seconds)
 
     def close(self) -> None:
         self._stop.set()
