@@ -44,11 +44,13 @@ def main() -> None:
                        serial protocol against the built-in emulator)
     On the robot:      robot hello|status|..., flash, evolve --port, measure
     When model and robot disagree:  diagnose --model TABLE --runs RUNS.jsonl
+    Where the robot is:  camera sheets|calibrate|check|serve, --observer camera:...
     """
 
 
 def _register() -> None:
     from pac_host.cli import (
+        camera,
         diagnose,
         evolve,
         experiment,
@@ -60,7 +62,8 @@ def _register() -> None:
         table,
     )
 
-    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash, sweep):
+    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash, camera,
+                sweep):
         mod.register(main)
 
 
