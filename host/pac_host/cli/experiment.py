@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from pac_host.cli.cluster_options import scheduler_options
 from pac_host.cli.options import (
     effect_option,
     effects_module_option,
@@ -15,8 +16,11 @@ from pac_host.cli.options import (
     progress_enabled,
 )
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
+from pac_host.errors import InputError
+from pac_host.executors import make_executor
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
+from pac_host.model.effects import BUILT_IN
 from pac_host.pal import PALConfig
 from pac_host.plots import experiment_plots
 
@@ -54,9 +58,11 @@ from pac_host.plots import experiment_plots
                    "the best any run shows on the robot).")
 @click.option("--optimum-generations", default=3000, show_default=True, type=int)
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
+@scheduler_options
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
-                   optimum_runs, optimum_generations, resume) -> None:
+                   optimum_runs, optimum_generations, resume, scheduler,
+                   connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
@@ -79,8 +85,13 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
     )
     actual = load_with_effects(actual_spec, effect_specs)
     model = resolve_table(model_spec)
+    user = [e.name for e in (*actual.effects, *model.effects) if e.name not in BUILT_IN]
+    if scheduler and user:  # a cluster's workers import the project, not the user's file
+        raise InputError(f"effect {user[0]}: user-defined effects run with --jobs on this "
+                         "machine, not on a --scheduler cluster")
     bar = _Progress() if progress_enabled() else None
-    summary = run_experiment(out_dir, cfg, model, actual, jobs, resume, bar)
+    with make_executor(jobs, scheduler, connect_timeout) as engine:
+        summary = run_experiment(out_dir, cfg, model, actual, engine, resume, bar)
     if bar:
         bar.close()
     plots = experiment_plots(summary, out_dir)
