@@ -31,7 +31,7 @@ import numpy as np
 
 from pac_host import pal
 from pac_host.coverage import START_POSE, detect_blocks, format_turn_cycle
-from pac_host.errors import InputError, PacError
+from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError
 from pac_host.experiment import ExperimentConfig, initial_population
 from pac_host.files import write_atomic
 from pac_host.model.table import GaitTable, resolve_table, save_table
@@ -210,7 +210,7 @@ def evolve(
         timer = _TimedRobot(robot)
         try:
             state, rec = pal.punctuate(state, timer, rng, pcfg)
-        except PacError as e:
+        except TOOLKIT_ERRORS as e:
             raise RunInterrupted(
                 f"run {robot.current_run}: {e}. Everything observed is in {d.observations}; "
                 f"`pac-host evolve --resume {d.root}` continues from the last complete "
