@@ -48,24 +48,22 @@ def _wilcoxon_by_enumeration(x, y) -> tuple[float, float]:
     return w, float(np.mean([abs(s - mean) >= abs(w - mean) - 1e-9 for s in sums]))
 
 
-def test_wilcoxon_with_ties_matches_brute_force_enumeration():
-    rng = np.random.default_rng(0)
-    x = rng.integers(0, 10, 9).astype(float)
-    y = rng.integers(0, 10, 9).astype(float)
-    got = wilcoxon_signed_rank(x, y)
-    w, p = _wilcoxon_by_enumeration(x, y)
-    assert got["method"] == "permutation"
-    assert got["statistic"] == pytest.approx(w)
-    assert got["p_value"] == pytest.approx(p, abs=1e-9)
+def _tied_integers(rng):
+    return rng.integers(0, 10, 9).astype(float), rng.integers(0, 10, 9).astype(float)
 
 
-def test_wilcoxon_without_ties_matches_brute_force_enumeration():
-    rng = np.random.default_rng(1)
+def _distinct_reals(rng):
     x = rng.normal(size=12)
-    y = x + rng.normal(0.4, 1.0, 12)
+    return x, x + rng.normal(0.4, 1.0, 12)
+
+
+@pytest.mark.parametrize(("pairs", "method"), [(_tied_integers, "permutation"),
+                                               (_distinct_reals, "exact")])
+def test_wilcoxon_matches_brute_force_enumeration(pairs, method):
+    x, y = pairs(np.random.default_rng(0))
     got = wilcoxon_signed_rank(x, y)
     w, p = _wilcoxon_by_enumeration(x, y)
-    assert got["method"] == "exact"
+    assert got["method"] == method
     assert got["statistic"] == pytest.approx(w)
     assert got["p_value"] == pytest.approx(p, abs=1e-9)
 
