@@ -68,15 +68,24 @@ def test_wilcoxon_matches_brute_force_enumeration(pairs, method):
     assert got["p_value"] == pytest.approx(p, abs=1e-9)
 
 
-def test_wilcoxon_many_tied_pairs_uses_the_normal_approximation():
-    # 30 seeds of integer coverage: the experiment's usual case; partial higher on most seeds
+def test_wilcoxon_30_tied_seeds_all_one_way_is_the_exact_tail():
+    # 30 seeds of integer coverage, x higher on every seed: exactly 2 of 2^30 sign patterns
+    # are as extreme, whatever the ties (the normal approximation would say ~1e-6)
     rng = np.random.default_rng(2)
     y = rng.integers(5, 25, 30)
-    x = y + rng.integers(-2, 6, 30)
+    x = y + rng.integers(1, 4, 30)
     got = wilcoxon_signed_rank(x, y)
-    assert got["method"] == "normal"
-    assert got["p_value"] < 0.01
-    assert wilcoxon_signed_rank(y, x)["p_value"] == pytest.approx(got["p_value"])
+    assert got["method"] == "exact"
+    assert got["p_value"] == pytest.approx(2 / 2**30, rel=1e-9)
+    assert wilcoxon_signed_rank(y, x)["p_value"] == pytest.approx(got["p_value"], rel=1e-12)
+
+
+def test_wilcoxon_beyond_50_pairs_uses_the_normal_approximation():
+    rng = np.random.default_rng(3)
+    y = rng.integers(5, 25, 80)
+    x = y + rng.integers(-2, 6, 80)
+    got = wilcoxon_signed_rank(x, y)
+    assert got["method"] == "normal" and got["p_value"] < 0.01
 
 
 def test_wilcoxon_no_difference():
