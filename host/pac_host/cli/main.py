@@ -47,11 +47,13 @@ def main() -> None:
                        serial protocol against the built-in emulator)
     On the robot:      robot hello|status|..., flash, evolve --port, measure
     When model and robot disagree:  diagnose --model TABLE --runs RUNS.jsonl
+    Where the robot is:  camera sheets|calibrate|check|serve, --observer camera:...
     """
 
 
 def _register() -> None:
     from pac_host.cli import (
+        camera,
         diagnose,
         evolve,
         experiment,
@@ -62,7 +64,7 @@ def _register() -> None:
         table,
     )
 
-    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash):
+    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash, camera):
         mod.register(main)
 
 
