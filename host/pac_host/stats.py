@@ -29,7 +29,8 @@ def wilcoxon_signed_rank(x: Sequence[float], y: Sequence[float]) -> dict:
     tied differences and n <= 13; ``exact``, SciPy's exact distribution, for n <= 50 (with tied
     ranks SciPy rounds the statistic the conservative way: on the paper experiment's 30 seeds,
     p = 0.029 where the tie-exact value is 0.027, and the same 1.9e-9 where all seeds agree, which
-    the normal approximation puts at 1.7e-6); ``normal`` (tie and continuity corrected) beyond. ``statistic`` is the rank sum of the pairs where x is higher.
+    the normal approximation puts at 1.7e-6); ``normal`` (tie and continuity corrected) beyond.
+    ``statistic`` is the rank sum of the pairs where x is higher.
     """
     d = np.asarray(x, dtype=float) - np.asarray(y, dtype=float)
     d = d[d != 0]
