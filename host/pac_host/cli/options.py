@@ -6,9 +6,8 @@ import sys
 
 import click
 
-from pac_host.errors import InputError
 from pac_host.limits import Bound
-from pac_host.model import GaitTable, parse_effect, resolve_table
+from pac_host.model import load_with_effects  # noqa: F401  (re-exported for the commands)
 
 
 class Bounded(click.ParamType):
@@ -48,17 +47,6 @@ def effect_option():
         metavar="NAME:P=V,...",
         help="Add an unmodelled effect, e.g. transition:alpha=0.3 (repeatable).",
     )
-
-
-def load_with_effects(table_spec: str, effect_specs: tuple[str, ...] = ()) -> GaitTable:
-    """Resolve a table and add effects given on the command line to the table's own."""
-    table = resolve_table(table_spec)
-    extra = [parse_effect(s) for s in effect_specs]
-    names = [e.name for e in table.effects] + [e.name for e in extra]
-    dup = {n for n in names if names.count(n) > 1}
-    if dup:
-        raise InputError(f"effect {sorted(dup)[0]} given twice")
-    return table.with_effects(tuple(table.effects) + tuple(extra)) if extra else table
 
 
 def progress_enabled() -> bool:
