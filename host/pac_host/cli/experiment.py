@@ -8,8 +8,10 @@ from pathlib import Path
 
 import click
 
+from pac_host import limits
 from pac_host.cli.cluster_options import scheduler_options
 from pac_host.cli.options import (
+    Bounded,
     effect_option,
     effects_module_option,
     load_with_effects,
@@ -26,9 +28,9 @@ from pac_host.plots import experiment_plots
 
 
 @click.command("experiment")
-@click.option("--seeds", default=5, show_default=True, type=int,
+@click.option("--seeds", default=5, show_default=True, type=Bounded(limits.SEEDS),
               help="Starting populations (the paper used 5).")
-@click.option("--generations", default=1000, show_default=True, type=int,
+@click.option("--generations", default=1000, show_default=True, type=Bounded(limits.GENERATIONS),
               help="CGA generations per run; a punctuation every 40.")
 @click.option("--methods", default="full,partial,oracle", show_default=True,
               help="Comma-separated: full, partial, and the control oracle (the CGA on the "
@@ -49,14 +51,16 @@ from pac_host.plots import experiment_plots
               type=click.Choice(["coverage", "steps"]),
               help="Model GA score: the paper's six coverage differences, or one-step "
                    "residuals of the observed paths (a project extension).")
-@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
+@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=Bounded(limits.BUDGET),
               help="Gait cycles per test run.")
-@click.option("--initial-generations", default=1000, show_default=True, type=int,
+@click.option("--initial-generations", default=1000, show_default=True,
+              type=Bounded(limits.GENERATIONS),
               help="Length of the CGA run on the model that seeds each population.")
-@click.option("--optimum-runs", default=8, show_default=True, type=int,
+@click.option("--optimum-runs", default=8, show_default=True, type=Bounded(limits.RUNS),
               help="Long CGA runs on the actual table that establish the optimum (raised to "
                    "the best any run shows on the robot).")
-@click.option("--optimum-generations", default=3000, show_default=True, type=int)
+@click.option("--optimum-generations", default=3000, show_default=True,
+              type=Bounded(limits.GENERATIONS))
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 @scheduler_options
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,

@@ -6,9 +6,28 @@ import sys
 
 import click
 
-from pac_host.errors import InputError
+from pac_host.errors import InputError, exit_code
+from pac_host.limits import Bound
 from pac_host.model import load_with_effects  # noqa: F401  (re-exported for the commands)
 from pac_host.model.effects_module import load_effects_module
+
+
+class Bounded(click.ParamType):
+    """An integer option held to a :class:`~pac_host.limits.Bound`: outside it, one line naming
+    the option, the range and why, and exit 2. The help shows the range as the metavar."""
+
+    name = "integer"
+
+    def __init__(self, bound: Bound) -> None:
+        self.bound = bound
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        return self.bound.describe()
+
+    def convert(self, value, param, ctx) -> int:
+        v = value if isinstance(value, int) else click.INT.convert(value, param, ctx)
+        name = param.opts[0] if param is not None and param.opts else "value"
+        return self.bound.check(v, name)
 
 
 def table_option(default: str = "measured", help_text: str | None = None):
@@ -38,7 +57,7 @@ def _load_modules(ctx: click.Context, param: click.Parameter, value: tuple[str, 
             load_effects_module(path)
     except InputError as e:  # raised while parsing, before the command's own error handling
         click.echo(f"{ctx.find_root().info_name}: error: {e}", err=True)
-        ctx.exit(e.exit_code)
+        ctx.exit(exit_code(e))
 
 
 def effects_module_option():
