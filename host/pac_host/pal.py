@@ -27,7 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
-from pac_host import cga, model_ga
+from pac_host import cga, limits, model_ga
 from pac_host.coverage import (
     DEFAULT_BUDGET,
     MAX_REPS,
@@ -96,9 +96,6 @@ class SimulatedRobot:
         return results_from_coverage(cov)
 
 
-MAX_SEARCH_EVALUATIONS = 10**9  # per punctuation: about an hour on one core
-
-
 @dataclass(frozen=True)
 class PALConfig:
     """Settings of the PAL loop (DESIGN.md 2.5 and the project's GA defaults)."""
@@ -125,9 +122,8 @@ class PALConfig:
         if self.search not in ("cga", "ils"):
             raise InputError(f"search between punctuations must be cga or ils, got "
                              f"{self.search!r}")
-        if self.search != "cga" and not 1 <= self.search_evaluations <= MAX_SEARCH_EVALUATIONS:
-            raise InputError(f"--search-evaluations must be 1..{MAX_SEARCH_EVALUATIONS}, got "
-                             f"{self.search_evaluations}")
+        if self.search != "cga":
+            limits.SEARCH_EVALUATIONS.check(self.search_evaluations, "--search-evaluations")
 
     def cga_config(self) -> cga.CGAConfig:
         return replace(self.cga, population=self.cga_population, budget=self.budget)

@@ -11,16 +11,20 @@ import sys
 import click
 
 from pac_host import __version__
-from pac_host.errors import PacError
+from pac_host.errors import TOOLKIT_ERRORS, exit_code
 
 
 class _Group(click.Group):
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
-        except PacError as e:
+        except TOOLKIT_ERRORS as e:
             click.echo(f"pac-host: error: {e}", err=True)
-            ctx.exit(e.exit_code)
+            ctx.exit(exit_code(e))
+        except click.UsageError as e:  # a bad option of a command: one line too, exit 2
+            where = e.ctx.command_path if e.ctx is not None else ctx.command_path
+            click.echo(f"pac-host: error: {e.format_message()} (see '{where} --help')", err=True)
+            ctx.exit(2)
         except KeyboardInterrupt:
             click.echo("pac-host: interrupted (work already written is kept)", err=True)
             ctx.exit(130)
@@ -39,16 +43,19 @@ def main() -> None:
     anytime learning).
 
     \b
-    Without hardware:  simulate, optimize (the best turn cycle on a model),
-                       experiment (the paper's experiment), evolve (PAL over the
-                       serial protocol against the built-in emulator)
+    Without hardware:  simulate, optimize (the best turn cycle on a model), experiment (the
+                       paper's experiment), sweep (experiments over a grid of settings, on a
+                       Dask cluster too), evolve (PAL over the serial protocol against the
+                       built-in emulator)
     On the robot:      robot hello|status|..., flash, evolve --port, measure
     When model and robot disagree:  diagnose --model TABLE --runs RUNS.jsonl
+    Where the robot is:  camera sheets|calibrate|check|serve, --observer camera:...
     """
 
 
 def _register() -> None:
     from pac_host.cli import (
+        camera,
         diagnose,
         evolve,
         experiment,
@@ -57,10 +64,12 @@ def _register() -> None:
         optimize,
         robot,
         simulate,
+        sweep,
         table,
     )
 
-    for mod in (table, simulate, optimize, experiment, robot, evolve, measure, diagnose, flash):
+    for mod in (table, simulate, optimize, experiment, robot, evolve, measure, diagnose, flash,
+                camera, sweep):
         mod.register(main)
 
 

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from pac_host.cli.options import effect_option, load_with_effects, table_option
+from pac_host import limits
+from pac_host.cli.options import Bounded, effect_option, load_with_effects, table_option
 from pac_host.coverage import DEFAULT_BUDGET
 from pac_host.errors import InputError
 from pac_host.files import write_atomic
@@ -17,12 +18,12 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 @click.command("optimize")
 @table_option(default="shifted")
 @effect_option()
-@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
+@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=Bounded(limits.BUDGET),
               help="Gait cycles per walk.")
 @click.option("--seconds", type=float, help="Stop after this many seconds (wall time).")
-@click.option("--evaluations", type=int,
+@click.option("--evaluations", type=Bounded(limits.EVALUATIONS),
               help="Stop after this many coverage evaluations (reproducible).")
-@click.option("--chains", default=1, show_default=True, type=int,
+@click.option("--chains", default=1, show_default=True, type=Bounded(limits.CHAINS),
               help="Independent search chains; the result depends on the seed and the chains, "
                    "not on --jobs.")
 @click.option("--seed", default=0, show_default=True, type=int)

@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from pac_host import limits
 from pac_host.coverage import (
     DEFAULT_BUDGET,
     MAX_GENES,
@@ -29,7 +30,6 @@ from pac_host.errors import InputError
 from pac_host.model.effects import Effect
 from pac_host.search.local import Objective, restarts
 
-MAX_EVALUATIONS = 10**11
 MAX_SECONDS = 7 * 24 * 3600.0
 
 
@@ -50,13 +50,10 @@ class OptimizeConfig:
             raise InputError("give a budget: --seconds S or --evaluations N")
         if self.seconds is not None and not 0 < self.seconds <= MAX_SECONDS:
             raise InputError(f"--seconds must be in (0, {MAX_SECONDS:.0f}], got {self.seconds}")
-        if self.evaluations is not None and not 0 < self.evaluations <= MAX_EVALUATIONS:
-            raise InputError(f"--evaluations must be in 1..{MAX_EVALUATIONS}, "
-                             f"got {self.evaluations}")
-        if not 1 <= self.budget <= 100_000:
-            raise InputError(f"--budget must be 1..100000 gait cycles, got {self.budget}")
-        if not 1 <= self.chains <= 1024:
-            raise InputError(f"--chains must be 1..1024, got {self.chains}")
+        if self.evaluations is not None:
+            limits.EVALUATIONS.check(self.evaluations, "--evaluations")
+        limits.BUDGET.check(self.budget, "--budget")
+        limits.CHAINS.check(self.chains, "--chains")
         if self.patience < 1 or not 1 <= self.kick_genes <= MAX_GENES:
             raise InputError("patience must be >= 1 and kick genes 1..9")
 
