@@ -10,7 +10,7 @@ batched call of the coverage simulator.
 >>> from pac_host.coverage import parse_turn_cycle
 >>> n = neighbours(parse_turn_cycle("12:60,3:10"), budget=200)
 >>> n.shape[1:], len(n)  # two active genes, and one slot to fill after them
-((9, 2), 6049)
+((9, 2), 6048)
 """
 
 from __future__ import annotations
