@@ -5,12 +5,21 @@ emulator's world), the turn cycle is loaded, run for the budget, and observed; t
 from the observed path (:func:`pac_host.coverage.coverage_of_poses`) or from the operator's
 count. Every observation is appended to the run's log before it is used, so a robot that stops
 answering mid-run leaves a log holding everything seen up to then.
+
+A test whose link broke down mid-way (the robot silent or reset, the observer out of step or
+silent, after the link's own retries and resynchronisations) is redone from its start, at most
+``redos`` times: the robot is stopped and said HELLO to again (a fresh session), re-placed (the
+operator is asked again, or the emulator is placed), and the test runs again. Every retry,
+resync, dropped report and redone test is logged as it happens and counted in
+:attr:`LinkedRobot.recovery`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +27,38 @@ import numpy as np
 from pac_host.coverage import START_POSE, coverage_of_poses, expand
 from pac_host.errors import InputError, PacError
 from pac_host.pal import TestResult
-from pac_host.robot.api import StampRobot
+from pac_host.robot.api import RobotReset, RobotSilent, StampRobot
 from pac_host.robot.observers import Observation, Observer, ObserverError
 from pac_host.robot.placement import Placer
+from pac_protocol.errors import NoAnswer, StampReset
+from pac_protocol.messages import State
+
+REDOS = 2  # a broken-down test is redone from its start at most this often
+IDLE_POLLS = 10  # STATUS asked at most this often for a stopped robot to become idle
+BROKEN_LINK = (RobotSilent, RobotReset, NoAnswer, StampReset, ObserverError)
+
+
+@dataclass
+class Recovery:
+    """What the link's recovery did (counts, and the events in order)."""
+
+    retries: int = 0
+    resyncs: int = 0
+    redone_tests: int = 0
+    implausible_reports: int = 0
+    events: list[dict] = field(default_factory=list)
+
+    KINDS = {"retry": "retries", "resync": "resyncs", "redo": "redone_tests",
+             "implausible_report": "implausible_reports"}
+
+    def note(self, doc: dict) -> None:
+        name = self.KINDS.get(doc["type"])
+        if name is not None:
+            setattr(self, name, getattr(self, name) + 1)
+        self.events.append(doc)
+
+    def counts(self) -> dict:
+        return {k: v for k, v in asdict(self).items() if k != "events"}
 
 
 class AppendLog:
@@ -63,8 +101,11 @@ class LinkedRobot:
 
     def __init__(self, robot: StampRobot, observer: Observer, placer: Placer,
                  budget: int, log: AppendLog, seed: int = 0,
-                 start_pose: Sequence[float] = START_POSE) -> None:
+                 start_pose: Sequence[float] = START_POSE, redos: int = REDOS) -> None:
         self.robot = robot
+        self.redos = redos
+        self.recovery = Recovery()
+        robot.link.on_event = self._link_event
         self.observer = observer
         self.placer = placer
         self.budget = budget
@@ -80,25 +121,67 @@ class LinkedRobot:
         return [self.run_one(f"g{self.generation}-t{i}", np.asarray(t), (self.generation, i))
                 for i, t in enumerate(tests)]
 
+    def take_recovery(self) -> Recovery:
+        """The recovery since the last call (one punctuation's), and start counting afresh."""
+        rec, self.recovery = self.recovery, Recovery()
+        return rec
+
+    def _link_event(self, doc: dict) -> None:
+        doc = {**doc, "run_id": self.current_run}
+        self.recovery.note(doc)
+        self.log(doc)
+
     def run_one(self, run_id: str, genes: np.ndarray, key: tuple[int, ...]) -> TestResult:
-        """Place, load, run the budget, observe, score one turn cycle (9, 2)."""
+        """Place, load, run the budget, observe, score one turn cycle (9, 2); redo it from its
+        start if the link broke down mid-way (module docstring)."""
         self.current_run = run_id
+        for attempt in range(self.redos + 1):
+            try:
+                return self._attempt(run_id, genes, key, attempt)
+            except BROKEN_LINK as e:
+                if attempt == self.redos:
+                    raise
+                self._link_event({"type": "redo", "attempt": attempt + 1,
+                                  "why": f"{type(e).__name__}: {e}"})
+                try:
+                    self._restart_session()
+                except PacError as again:
+                    raise PacError(f"{e} (redoing the test: {again})") from None
+        raise AssertionError("unreachable")
+
+    def _restart_session(self) -> None:
+        """After a broken-down test: the robot stopped, idle, and in a fresh session (HELLO
+        clears the Stamp's lastSeq: allowed, as no request is pending)."""
+        with contextlib.suppress(NoAnswer):
+            self.robot.stop()  # honoured at the next gait-cycle boundary
+        for _ in range(IDLE_POLLS):
+            if self.robot.status().state == State.IDLE:
+                break
+            self.robot.link.next_event(self.robot.event_timeout)
+        else:
+            raise RobotSilent(f"{self.robot.name}: the robot does not stop walking")
+        self.robot.hello()
+
+    def _attempt(self, run_id: str, genes: np.ndarray, key: tuple[int, ...], attempt: int
+                 ) -> TestResult:
         genes = np.asarray(genes, dtype=np.int64).reshape(-1, 2)
         stored = [(int(g), int(r)) for g, r in genes if r > 0]
         seen = self.placer.place(run_id, self.start_pose, run_seed(self.seed, *key))
         start = tuple(seen) if seen is not None else self.start_pose
         self.log({"type": "start", "run_id": run_id, "turn_cycle": stored,
-                  "nominal_start": list(self.start_pose), "observed_start": seen})
+                  "nominal_start": list(self.start_pose), "observed_start": seen,
+                  **({"attempt": attempt} if attempt else {})})
         if not stored or self.budget == 0:  # nothing to walk: the robot stays where it is
             poses = np.tile(np.asarray(start), (self.budget, 1))
             return self._result(run_id, start, [], poses, 0, Observation(poses=poses))
         self.robot.load(stored)
-        n0 = self.robot.status().power_on
+        n0 = self.robot.power_on()
         self.observer.begin(run_id, n0, self.log)
-        report = self.robot.run(self.budget, lambda c: self.observer.on_cycle(c.power_on))
+        report = self.robot.run(self.budget, lambda c: self.observer.on_cycle(c.power_on), n0)
         obs = self.observer.finish(report.done)
         self.log({"type": "done", "run_id": run_id, "cycles": report.done,
                   "completed": report.completed, "lost_reports": report.lost_reports,
+                  "implausible_reports": report.implausible,
                   "power_on_before": report.power_on_before})
         if not report.completed:
             raise PacError(f"run {run_id}: the robot stopped after {report.done} of "
