@@ -12,6 +12,7 @@ from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
 from pac_host.model.table import BUILTIN
 from pac_host.robot.connect import connect
+from pac_host.robot.recovery import describe_counts
 
 
 @click.command("evolve")
@@ -99,9 +100,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                    f"{last['operational_fitness']} on the robot); files in {root}")
         rec = recovery_summary(root)
         if rec:
-            click.echo(f"link recovery: {rec.get('retries', 0)} retries, "
-                       f"{rec.get('resyncs', 0)} resyncs, {rec.get('redone_tests', 0)} redone "
-                       f"tests, {rec.get('implausible_reports', 0)} implausible reports dropped")
+            click.echo(describe_counts(rec))
 
 
 def _spec(table: str) -> str:

@@ -16,10 +16,8 @@ resync, dropped report and redone test is logged as it happens and counted in
 
 from __future__ import annotations
 
-import contextlib
 import json
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -27,38 +25,10 @@ import numpy as np
 from pac_host.coverage import START_POSE, coverage_of_poses, expand
 from pac_host.errors import InputError, PacError
 from pac_host.pal import TestResult
-from pac_host.robot.api import RobotReset, RobotSilent, StampRobot
+from pac_host.robot.api import StampRobot
 from pac_host.robot.observers import Observation, Observer, ObserverError
 from pac_host.robot.placement import Placer
-from pac_protocol.errors import NoAnswer, StampReset
-from pac_protocol.messages import State
-
-REDOS = 2  # a broken-down test is redone from its start at most this often
-IDLE_POLLS = 10  # STATUS asked at most this often for a stopped robot to become idle
-BROKEN_LINK = (RobotSilent, RobotReset, NoAnswer, StampReset, ObserverError)
-
-
-@dataclass
-class Recovery:
-    """What the link's recovery did (counts, and the events in order)."""
-
-    retries: int = 0
-    resyncs: int = 0
-    redone_tests: int = 0
-    implausible_reports: int = 0
-    events: list[dict] = field(default_factory=list)
-
-    KINDS = {"retry": "retries", "resync": "resyncs", "redo": "redone_tests",
-             "implausible_report": "implausible_reports"}
-
-    def note(self, doc: dict) -> None:
-        name = self.KINDS.get(doc["type"])
-        if name is not None:
-            setattr(self, name, getattr(self, name) + 1)
-        self.events.append(doc)
-
-    def counts(self) -> dict:
-        return {k: v for k, v in asdict(self).items() if k != "events"}
+from pac_host.robot.recovery import REDOS, Recovery, with_redos
 
 
 class AppendLog:
@@ -135,32 +105,8 @@ class LinkedRobot:
         """Place, load, run the budget, observe, score one turn cycle (9, 2); redo it from its
         start if the link broke down mid-way (module docstring)."""
         self.current_run = run_id
-        for attempt in range(self.redos + 1):
-            try:
-                return self._attempt(run_id, genes, key, attempt)
-            except BROKEN_LINK as e:
-                if attempt == self.redos:
-                    raise
-                self._link_event({"type": "redo", "attempt": attempt + 1,
-                                  "why": f"{type(e).__name__}: {e}"})
-                try:
-                    self._restart_session()
-                except PacError as again:
-                    raise PacError(f"{e} (redoing the test: {again})") from None
-        raise AssertionError("unreachable")
-
-    def _restart_session(self) -> None:
-        """After a broken-down test: the robot stopped, idle, and in a fresh session (HELLO
-        clears the Stamp's lastSeq: allowed, as no request is pending)."""
-        with contextlib.suppress(NoAnswer):
-            self.robot.stop()  # honoured at the next gait-cycle boundary
-        for _ in range(IDLE_POLLS):
-            if self.robot.status().state == State.IDLE:
-                break
-            self.robot.link.next_event(self.robot.event_timeout)
-        else:
-            raise RobotSilent(f"{self.robot.name}: the robot does not stop walking")
-        self.robot.hello()
+        return with_redos(self.robot, lambda k: self._attempt(run_id, genes, key, k),
+                          self._link_event, self.redos)
 
     def _attempt(self, run_id: str, genes: np.ndarray, key: tuple[int, ...], attempt: int
                  ) -> TestResult:
