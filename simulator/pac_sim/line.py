@@ -22,7 +22,7 @@ import numpy as np
 from pac_protocol.frame import REQUEST_PAYLOAD, SYNC
 from pac_protocol.timing import BYTE_S
 from pac_sim.stamp_download import starts_download
-from pac_sim.targeted import FrameTarget, FrameTargets
+from pac_sim.targeted import FrameTarget, FrameTargets, PacketTargets
 
 WAIT_PATTERN = SYNC + bytes([REQUEST_PAYLOAD])  # WAIT($A5, $5A, $03)
 REQUEST_TAIL = 3 + REQUEST_PAYLOAD  # CMD SEQ P0 P1 P2 CHK after the WAIT
@@ -96,6 +96,7 @@ class PtyLine:
         self.muted = False  # set by mute(): the cable is pulled, nothing reaches the host
         self.aimed_out = FrameTargets(tuple(t for t in faults.targets if t.outgoing))
         self.aimed_in = FrameTargets(tuple(t for t in faults.targets if not t.outgoing))
+        self.aimed_packets = PacketTargets(faults.targets)
 
     # ---- faults -------------------------------------------------------------------------------
 

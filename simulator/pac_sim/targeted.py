@@ -5,7 +5,9 @@ reveal once may never come back. A :class:`FrameTarget` names its byte by what t
 not by time: ``CYCLE:165:6`` is byte 6 (0-based, counted from the first sync byte) of the 165th
 CYCLE report the Stamp sends; ``RUN:1:4`` is byte 4 (the SEQ) of the first RUN request the
 host sends. Requests (CMD < 0x80) are counted on the host -> Stamp direction, replies and reports
-on the Stamp -> host direction, each from the emulator's start.
+on the Stamp -> host direction, each from the emulator's start. ``PACKET:3:5`` is byte 5 of the
+third packet of a firmware download (BS2 download protocol, 18 bytes a packet), counted over
+every download since the start (so a download tried again is not hit again).
 
 :class:`FrameTargets` follows one direction of the clean stream frame by frame. It holds back a
 frame's first three bytes (sync and LEN, at most 3 byte times) until its CMD tells whether the
@@ -16,11 +18,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pac_host.stamp_image import PACKET_SIZE
 from pac_protocol.frame import HEADER, MAX_PAYLOAD, SYNC
 from pac_protocol.messages import Cmd
 
 ACTIONS = ("drop", "corrupt")
 CORRUPT_MASK = 0xFF  # a corrupted target byte has every bit flipped
+PACKET = 0x100  # the kind of a download packet (not a frame type: no CMD byte has this value)
 
 
 @dataclass(frozen=True)
@@ -37,17 +41,19 @@ class FrameTarget:
             raise ValueError(f"action must be one of {ACTIONS}, got {self.action!r}")
         if self.ordinal < 1:
             raise ValueError(f"frames are counted from 1, got {self.ordinal}")
-        if not 0 <= self.byte < HEADER + MAX_PAYLOAD + 1:
-            raise ValueError(f"a frame has at most {HEADER + MAX_PAYLOAD + 1} bytes, "
-                             f"byte {self.byte} is outside it")
+        size = PACKET_SIZE if self.cmd == PACKET else HEADER + MAX_PAYLOAD + 1
+        if not 0 <= self.byte < size:
+            raise ValueError(f"a {kind_name(self.cmd)} has at most {size} bytes, byte "
+                             f"{self.byte} is outside it")
 
     @property
     def outgoing(self) -> bool:
         """True for the Stamp -> host direction (replies and reports)."""
-        return bool(self.cmd & 0x80)
+        return self.cmd != PACKET and bool(self.cmd & 0x80)
 
-    def describe(self) -> str:
-        return f"{self.action} {Cmd(self.cmd).name}:{self.ordinal}:{self.byte}"
+
+def kind_name(cmd: int) -> str:
+    return "PACKET" if cmd == PACKET else Cmd(cmd).name
 
 
 def parse_target(action: str, text: str) -> FrameTarget:
@@ -57,13 +63,14 @@ def parse_target(action: str, text: str) -> FrameTarget:
     if len(parts) != 3:
         raise ValueError(f"expected KIND:N:BYTE (e.g. CYCLE:165:6), got {text!r}")
     kind = parts[0].upper()
-    if kind not in Cmd.__members__:
-        raise ValueError(f"{parts[0]!r} is not a frame type ({', '.join(Cmd.__members__)})")
+    if kind not in Cmd.__members__ and kind != "PACKET":
+        raise ValueError(f"{parts[0]!r} is not a frame type ({', '.join(Cmd.__members__)}) "
+                         "or PACKET")
     try:
         ordinal, byte = int(parts[1]), int(parts[2])
     except ValueError:
         raise ValueError(f"expected KIND:N:BYTE with whole numbers, got {text!r}") from None
-    return FrameTarget(action, int(Cmd[kind]), ordinal, byte)
+    return FrameTarget(action, PACKET if kind == "PACKET" else int(Cmd[kind]), ordinal, byte)
 
 
 class FrameTargets:
@@ -123,6 +130,38 @@ class FrameTargets:
             return bytes([b])
         self.hit.append(f"{action} {Cmd(cmd).name}:{n}:{pos}")
         return b"" if action == "drop" else bytes([b ^ CORRUPT_MASK])
+
+
+class PacketTargets:
+    """Applies the PACKET targets to the bytes of firmware downloads, counting packets as the
+    host sent them (a dropped byte does not shift the count)."""
+
+    def __init__(self, targets: tuple[FrameTarget, ...]) -> None:
+        self.targets = {(t.ordinal, t.byte): t.action for t in targets if t.cmd == PACKET}
+        self.packets = 0  # packets the host began, over every download
+        self.hit: list[str] = []
+        self._pos = 0  # bytes of the current packet sent so far
+
+    def new_download(self) -> None:
+        if self._pos:  # a packet cut short still counts
+            self.packets += 1
+        self._pos = 0
+
+    def byte(self, b: int) -> bytes:
+        """The next packet byte as the Stamp receives it (after identification)."""
+        n, pos = self.packets + 1, self._pos
+        self._pos += 1
+        if self._pos == PACKET_SIZE:
+            self.packets, self._pos = n, 0
+        action = self.targets.get((n, pos))
+        if action is None:
+            return bytes([b])
+        self.hit.append(f"{action} PACKET:{n}:{pos}")
+        return b"" if action == "drop" else bytes([b ^ CORRUPT_MASK])
+
+    @property
+    def mid_packet(self) -> bool:
+        return self._pos > 0
 
 
 def parse_targets(drop: tuple[str, ...] = (), corrupt: tuple[str, ...] = ()
