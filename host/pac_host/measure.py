@@ -134,7 +134,7 @@ def measure(
             current["run_id"] = f"m{gait}-r{r}"
             moves.append(with_redos(
                 conn.robot, lambda _k, g=gait, r=r: measure_once(conn, cfg, g, r, log, runs),
-                note))
+                note, observer=conn.observer))
         fits.append(fit(np.concatenate(moves), gait))
         if progress is not None:
             progress(gait, len(fits), len(cfg.ids))

@@ -106,7 +106,7 @@ class LinkedRobot:
         start if the link broke down mid-way (module docstring)."""
         self.current_run = run_id
         return with_redos(self.robot, lambda k: self._attempt(run_id, genes, key, k),
-                          self._link_event, self.redos)
+                          self._link_event, self.redos, self.observer)
 
     def _attempt(self, run_id: str, genes: np.ndarray, key: tuple[int, ...], attempt: int
                  ) -> TestResult:

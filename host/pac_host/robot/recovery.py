@@ -72,9 +72,10 @@ def restart_session(robot: StampRobot) -> None:
 
 
 def with_redos(robot: StampRobot, attempt: Callable[[int], T], note: Callable[[dict], None],
-               redos: int = REDOS) -> T:
+               redos: int = REDOS, observer: object = None) -> T:
     """``attempt(k)`` (k = 0, 1, ...: the k-th redo) until it returns; a broken link makes
-    it run again after :func:`restart_session`, at most ``redos`` times. Each redo is passed to
+    it run again after :func:`restart_session` (and the observer's ``forget``, if it has one:
+    what it holds of the cut test is stale), at most ``redos`` times. Each redo is passed to
     ``note``. Gives up with the last attempt's error, or the first one's if the robot cannot
     even be restarted (naming both)."""
     for k in range(redos + 1):
@@ -88,4 +89,7 @@ def with_redos(robot: StampRobot, attempt: Callable[[int], T], note: Callable[[d
                 restart_session(robot)
             except PacError as again:
                 raise PacError(f"{e} (redoing the test: {again})") from None
+            forget = getattr(observer, "forget", None)
+            if forget is not None:
+                forget()
     raise AssertionError("unreachable")
