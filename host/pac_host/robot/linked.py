@@ -112,7 +112,9 @@ class LinkedRobot:
                  ) -> TestResult:
         genes = np.asarray(genes, dtype=np.int64).reshape(-1, 2)
         stored = [(int(g), int(r)) for g, r in genes if r > 0]
-        seen = self.placer.place(run_id, self.start_pose, run_seed(self.seed, *key))
+        label = f"{run_id} (redone after a link failure, attempt {attempt + 1})" if attempt \
+            else run_id
+        seen = self.placer.place(label, self.start_pose, run_seed(self.seed, *key))
         start = tuple(seen) if seen is not None else self.start_pose
         self.log({"type": "start", "run_id": run_id, "turn_cycle": stored,
                   "nominal_start": list(self.start_pose), "observed_start": seen,
