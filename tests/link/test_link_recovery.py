@@ -85,17 +85,24 @@ def test_retries_then_a_status_resync_then_the_request_again(rig):
     """Every reply to the first four READs lost: four attempts, then STATUS reads what the
     Stamp does, then the same READ (same SEQ) gets through."""
     sim, robot, _, _ = rig(drop=tuple(f"GENE_R:{k}:6" for k in range(1, 5)))
+    robot.load([(7, 3)])
     events: list[dict] = []
     robot.link.on_event = events.append
-    robot.load([(7, 3)])
     assert robot.link.read_gene(0).gait == 7
-    assert [e["type"] for e in events] == ["retry"] * 3 + ["resync", "retry"]
-    assert events[3]["state"] == 0 and events[3]["request"].startswith("READ")
-    assert robot.link.stats.resyncs == 1
+    kinds = [e["type"] for e in events]
+    assert kinds.count("resync") == 1 == robot.link.stats.resyncs
+    resync = events[kinds.index("resync")]
+    assert resync["request"].startswith("READ") and resync["state"] == 0
+    before = [e for e in events[: kinds.index("resync")] if e["request"].startswith("READ")]
+    assert len(before) == 3  # attempts 2..4 of the first round
+    assert sim.line.aimed_out.hit == [f"drop GENE_R:{k}:6" for k in range(1, 5)]
 
 
-def test_a_test_whose_robot_reset_mid_way_is_redone_from_its_start(rig):
-    sim, linked, log, res = run_linked(rig, reset_after=30)
+@pytest.mark.parametrize("boot", [(), ("BOOT:2:5",)], ids=["boot-heard", "boot-lost"])
+def test_a_test_whose_robot_reset_mid_way_is_redone_from_its_start(rig, boot):
+    """Reset after 30 gait cycles; with its BOOT report lost too, STATUS finds the robot idle
+    with counts that cannot be this run's, twice: a reset all the same."""
+    sim, linked, log, res = run_linked(rig, reset_after=30, drop=boot)
     want = true_results(60)
     for k, r in enumerate(res):
         assert np.allclose(r.poses, want.poses[k], atol=2e-3)
@@ -126,7 +133,7 @@ def test_a_robot_switched_off_gives_up_within_the_stated_time(rig):
                                        "after 10 reported") as e:
         linked.run_tests(TESTS[:1])
     gave_up = time.monotonic() - last[-1]
-    assert gave_up < EVENT_S + 3 * READY_S + 0.5, gave_up
+    assert gave_up < EVENT_S + 3 * READY_S + 1.0, gave_up
     assert "redoing the test" in str(e.value)
 
 

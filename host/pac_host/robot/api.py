@@ -189,13 +189,22 @@ class StampRobot:
     def _follow(self, n: int, n0: int | None, on_cycle: Callable[[Cycle], None] | None,
                 seen: list[Cycle]) -> RunReport:
         dropped = 0
+        misfit: StatusReply | None = None
         while True:
             ev = self.link.next_event(self.event_timeout)
             if ev is None:
                 st = self._status_during_run(n, seen)
-                if st.state == State.IDLE and self._fits(st.done, st.power_on, n, n0, seen):
+                if st.state != State.IDLE:
+                    continue
+                if self._fits(st.done, st.power_on, n, n0, seen):
                     # the DONE report was lost on the line
                     return RunReport(n, st.done, st.done >= n, n0 or 0, seen, dropped)
+                if st == misfit:  # twice the same: the Stamp's, not a false frame
+                    raise RobotReset(
+                        f"{self.name}: the robot is idle after {self._done(seen)} reported gait "
+                        f"cycles but its counts do not fit the run ({st.describe()}): it reset "
+                        "and its BOOT report was lost", self._done(seen))
+                misfit = st
                 continue
             if isinstance(ev, Boot):
                 raise RobotReset(
