@@ -5,8 +5,8 @@ retries on a NAK for a bad check, a lost request or a lost reply. Reports the St
 unasked (CYCLE, DONE, BOOT) are queued in order for the caller. It never prints.
 
 Recovery comes in two layers (PROTOCOL.md 6): ``attempts`` retries of the identical request
-(the Stamp's SEQ deduplication makes them safe), then up to ``resyncs`` resynchronisations: the
-decoder and input are cleared, STATUS (itself retried) reads what the Stamp is doing, and the
+(the Stamp's SEQ deduplication makes them safe), then up to ``resyncs`` resynchronisations: any
+partial frame is forgotten, STATUS (itself retried) reads what the Stamp is doing, and the
 request is tried again with its original SEQ. Only then :class:`NoAnswer` is raised. A line on
 which nothing at all arrives is given up at once (a dead line, not a noisy one). Each retry and
 resync is counted in :class:`LinkStats` and passed to ``on_event`` as a dict, for the caller's
@@ -54,7 +54,7 @@ from pac_protocol.messages import (
 READY_TIMEOUT_S = 2.0  # T_IDLE + the longest gait cycle (1.31 s, firmware) + margin
 REPLY_TIMEOUT_S = 0.3
 ATTEMPTS = 4
-RESYNCS = 1  # rounds of STATUS + the same request again, after the attempts are used up
+RESYNCS = 2  # rounds of STATUS + the same request again, after the attempts are used up
 QUIET_S = 0.05  # a partial frame older than this is abandoned (PROTOCOL.md 6)
 EVENT_TIMEOUT_S = 5.0  # longest wait for the next report of a run
 HINTS = {
