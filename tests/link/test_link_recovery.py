@@ -153,3 +153,25 @@ def test_soak_at_1_percent_dropped_and_corrupted_bytes(baseline, tmp_path):
     assert sum(o["type"] == "retry" for o in obs) >= retries  # each one logged as it happened
     done = [o for o in obs if o["type"] == "done"]
     assert sum(o["lost_reports"] for o in done) > 0  # the faults really hit the reports
+
+
+def test_measure_redoes_a_measurement_whose_robot_reset(rig):
+    """`measure` uses the same layers: the reset in the second placement's walk is redone, and
+    the fit is that of a clean line (the same run seeds, the same tracker noise)."""
+    from pac_host.measure import MeasureConfig, measure
+    from pac_host.robot.connect import Connection
+    from pac_host.robot.recovery import Recovery
+
+    cfg = MeasureConfig(ids=(12, 20), repeats=2, cycles=3, seed=1)
+    fits, recs = [], []
+    for kw in ({}, {"reset_after": 5}):
+        sim, robot, observer, placer = rig(tracker_noise=(0.5, 1.0), **kw)
+        rec, log = Recovery(), []
+        fits.append(measure(Connection(robot, observer, placer, "emulator"), cfg, log.append,
+                            recovery=rec))
+        recs.append((rec, log))
+    assert [(f.gait, f.mean.tolist(), f.sd.tolist()) for f in fits[1]] == \
+        [(f.gait, f.mean.tolist(), f.sd.tolist()) for f in fits[0]]
+    rec, log = recs[1]
+    assert rec.redone_tests == 1 and recs[0][0].redone_tests == 0
+    assert [e["run_id"] for e in log if e["type"] == "redo"] == ["m12-r1"]
