@@ -217,8 +217,9 @@ class StampLink:
         self.stats.requests += 1
         why = ""
         for rnd in range(self.resyncs + 1):
-            if rnd:
-                self._resync(msg, why)
+            if rnd and not self._resync(msg, why):
+                why += "; STATUS unanswered too"
+                continue
             try:
                 reply = self._exchange(msg, seq, data, first=rnd == 0)
             except _Retry as r:
@@ -267,9 +268,9 @@ class StampLink:
             return reply
         raise _Retry(why)
 
-    def _resync(self, msg: Message, why: str) -> None:
+    def _resync(self, msg: Message, why: str) -> bool:
         """Forget any partial frame, then ask STATUS (retried, never resynchronised itself):
-        the Stamp is heard again and what it is doing is in :attr:`last_status`. HELLO is not
+        True if the Stamp answered, what it is doing then in :attr:`last_status`. HELLO is not
         used here: it clears the Stamp's lastSeq, which a pending LOAD, RUN or STEP relies on."""
         self.stats.resyncs += 1
         self.decoder = FrameDecoder()
@@ -279,14 +280,14 @@ class StampLink:
         try:
             st = self._exchange(status, seq, status.encode(seq), first=True)
         except _Retry as r:
-            raise NoAnswer(
-                f"{self.name}: no answer to {msg.describe()} after {self.attempts} attempts "
-                f"({why}), and none to STATUS to resynchronise ({r}; received {self._heard()})"
-            ) from None
+            self._event({"type": "resync", "request": msg.describe(), "why": why,
+                         "answered": False, "status_why": str(r)})
+            return False
         assert isinstance(st, StatusReply)
         self.last_status = st
-        self._event({"type": "resync", "request": msg.describe(), "why": why,
+        self._event({"type": "resync", "request": msg.describe(), "why": why, "answered": True,
                      "state": int(st.state), "done": st.done, "power_on": st.power_on})
+        return True
 
     def _await_reply(self, msg: Message, seq: int) -> Message:
         deadline = self.clock() + self.reply_timeout
