@@ -40,7 +40,7 @@ sys.path.insert(0, str(HERE))
 from bench_link import robot_seconds  # noqa: E402
 
 from pac_host.coverage import parse_turn_cycle  # noqa: E402
-from pac_host.errors import PacError  # noqa: E402
+from pac_host.errors import TOOLKIT_ERRORS  # noqa: E402
 from pac_host.evolve import EvolveConfig, evolve  # noqa: E402
 from pac_host.model import shifted_table  # noqa: E402
 from pac_host.robot.api import EVENT_TIMEOUT_S, StampRobot  # noqa: E402
@@ -85,7 +85,7 @@ def one_run(p: float, seed: int, firmware: bool) -> dict:
         try:
             with conn_cm as conn:
                 evolve(Path(tmp) / "run", CFG, conn)
-        except PacError as e:
+        except TOOLKIT_ERRORS as e:
             return {"seed": seed, "error": str(e), "wall_s": round(time.perf_counter() - t0, 2)}
         wall = time.perf_counter() - t0
         import json
@@ -146,7 +146,7 @@ def give_up_time() -> dict:
         error = ""
         try:
             linked.run_tests(parse_turn_cycle("12:10")[None])
-        except PacError as e:
+        except TOOLKIT_ERRORS as e:
             error = str(e)
         took = time.monotonic() - last[-1]
         for c in (observer, placer, port):

@@ -8,18 +8,29 @@ from pathlib import Path
 
 import click
 
-from pac_host.cli.options import effect_option, load_with_effects, progress_enabled
+from pac_host import limits
+from pac_host.cli.cluster_options import scheduler_options
+from pac_host.cli.options import (
+    Bounded,
+    effect_option,
+    effects_module_option,
+    load_with_effects,
+    progress_enabled,
+)
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
+from pac_host.errors import InputError
+from pac_host.executors import make_executor
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
+from pac_host.model.effects import BUILT_IN
 from pac_host.pal import PALConfig
 from pac_host.plots import experiment_plots
 
 
 @click.command("experiment")
-@click.option("--seeds", default=5, show_default=True, type=int,
+@click.option("--seeds", default=5, show_default=True, type=Bounded(limits.SEEDS),
               help="Starting populations (the paper used 5).")
-@click.option("--generations", default=1000, show_default=True, type=int,
+@click.option("--generations", default=1000, show_default=True, type=Bounded(limits.GENERATIONS),
               help="CGA generations per run; a punctuation every 40.")
 @click.option("--methods", default="full,partial,oracle", show_default=True,
               help="Comma-separated: full, partial, and the control oracle (the CGA on the "
@@ -33,24 +44,29 @@ from pac_host.plots import experiment_plots
 @click.option("--actual", "actual_spec", default="shifted", show_default=True,
               metavar="measured|shifted|FILE", help="The simulated actual robot's table.")
 @effect_option()
+@effects_module_option()
 @click.option("--model", "model_spec", default="measured", show_default=True,
               metavar="measured|shifted|FILE", help="The model the CGA starts on.")
 @click.option("--model-fitness", default="coverage", show_default=True,
               type=click.Choice(["coverage", "steps"]),
               help="Model GA score: the paper's six coverage differences, or one-step "
                    "residuals of the observed paths (a project extension).")
-@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
+@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=Bounded(limits.BUDGET),
               help="Gait cycles per test run.")
-@click.option("--initial-generations", default=1000, show_default=True, type=int,
+@click.option("--initial-generations", default=1000, show_default=True,
+              type=Bounded(limits.GENERATIONS),
               help="Length of the CGA run on the model that seeds each population.")
-@click.option("--optimum-runs", default=8, show_default=True, type=int,
+@click.option("--optimum-runs", default=8, show_default=True, type=Bounded(limits.RUNS),
               help="Long CGA runs on the actual table that establish the optimum (raised to "
                    "the best any run shows on the robot).")
-@click.option("--optimum-generations", default=3000, show_default=True, type=int)
+@click.option("--optimum-generations", default=3000, show_default=True,
+              type=Bounded(limits.GENERATIONS))
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
+@scheduler_options
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
-                   optimum_runs, optimum_generations, resume) -> None:
+                   optimum_runs, optimum_generations, resume, scheduler,
+                   connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
@@ -73,8 +89,13 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
     )
     actual = load_with_effects(actual_spec, effect_specs)
     model = resolve_table(model_spec)
+    user = [e.name for e in (*actual.effects, *model.effects) if e.name not in BUILT_IN]
+    if scheduler and user:  # a cluster's workers import the project, not the user's file
+        raise InputError(f"effect {user[0]}: user-defined effects run with --jobs on this "
+                         "machine, not on a --scheduler cluster")
     bar = _Progress() if progress_enabled() else None
-    summary = run_experiment(out_dir, cfg, model, actual, jobs, resume, bar)
+    with make_executor(jobs, scheduler, connect_timeout) as engine:
+        summary = run_experiment(out_dir, cfg, model, actual, engine, resume, bar)
     if bar:
         bar.close()
     plots = experiment_plots(summary, out_dir)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import click
 
-from pac_host.cli.options import load_with_effects
+from pac_host.cli.options import effects_module_option, load_with_effects
 from pac_host.errors import InputError
 from pac_host.robot.connect import EmulatorOptions
 
@@ -14,10 +14,12 @@ OPTIONS = [
                  help="Serial port of the robot (or a pyserial URL, or $PAC_PORT). Without it "
                       "the built-in emulator plays the robot."),
     click.option("--observer", "observer_spec", default=None,
-                 metavar="tracker:HOST:PORT|pipe:PATH|manual",
+                 metavar="tracker:HOST:PORT|pipe:PATH|camera:SOURCE[,OPTS]|manual",
                  help="Where the robot really is: a tracker stream (TCP or named pipe, lines "
-                      "'POSE seq gait power_on x y h') or the operator at a prompt. Default "
-                      "with the emulator: its tracker."),
+                      "'POSE seq gait power_on x y h'), an overhead camera (SOURCE a camera "
+                      "index, video or folder with calib=FILE, or sim: the emulator's virtual "
+                      "camera; docs/camera.md) or the operator at a prompt. Default with the "
+                      "emulator: its tracker."),
     click.option("--placer", default="operator", show_default=True,
                  type=click.Choice(["operator", "tracker"]),
                  help="With --port: who puts the robot at each start pose: a person (asked, "
@@ -26,6 +28,7 @@ OPTIONS = [
                  metavar="measured|shifted|FILE", help="Emulator: the robot's true gait table."),
     click.option("--sim-effect", "sim_effects", multiple=True, metavar="NAME:P=V,...",
                  help="Emulator: an unmodelled effect of the true robot (repeatable)."),
+    effects_module_option(),
     click.option("--sim-noise", default="0.5,1", show_default=True, metavar="POS_CM,HEAD_DEG",
                  help="Emulator: standard deviation of the tracker's noise."),
     click.option("--sim-realtime", default=0.0, show_default=True, type=float,

@@ -11,16 +11,20 @@ import sys
 import click
 
 from pac_host import __version__
-from pac_host.errors import PacError
+from pac_host.errors import TOOLKIT_ERRORS, exit_code
 
 
 class _Group(click.Group):
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
-        except PacError as e:
+        except TOOLKIT_ERRORS as e:
             click.echo(f"pac-host: error: {e}", err=True)
-            ctx.exit(e.exit_code)
+            ctx.exit(exit_code(e))
+        except click.UsageError as e:  # a bad option of a command: one line too, exit 2
+            where = e.ctx.command_path if e.ctx is not None else ctx.command_path
+            click.echo(f"pac-host: error: {e.format_message()} (see '{where} --help')", err=True)
+            ctx.exit(2)
         except KeyboardInterrupt:
             click.echo("pac-host: interrupted (work already written is kept)", err=True)
             ctx.exit(130)
@@ -39,15 +43,18 @@ def main() -> None:
     anytime learning).
 
     \b
-    Without hardware:  simulate, experiment (the paper's experiment), evolve (PAL over the
+    Without hardware:  simulate, experiment (the paper's experiment), sweep (experiments over
+                       a grid of settings, on a Dask cluster too), evolve (PAL over the
                        serial protocol against the built-in emulator)
     On the robot:      robot hello|status|..., flash, evolve --port, measure
     When model and robot disagree:  diagnose --model TABLE --runs RUNS.jsonl
+    Where the robot is:  camera sheets|calibrate|check|serve, --observer camera:...
     """
 
 
 def _register() -> None:
     from pac_host.cli import (
+        camera,
         diagnose,
         evolve,
         experiment,
@@ -55,10 +62,12 @@ def _register() -> None:
         measure,
         robot,
         simulate,
+        sweep,
         table,
     )
 
-    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash):
+    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash, camera,
+                sweep):
         mod.register(main)
 
 

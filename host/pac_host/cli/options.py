@@ -6,8 +6,28 @@ import sys
 
 import click
 
-from pac_host.errors import InputError
-from pac_host.model import GaitTable, parse_effect, resolve_table
+from pac_host.errors import InputError, exit_code
+from pac_host.limits import Bound
+from pac_host.model import load_with_effects  # noqa: F401  (re-exported for the commands)
+from pac_host.model.effects_module import load_effects_module
+
+
+class Bounded(click.ParamType):
+    """An integer option held to a :class:`~pac_host.limits.Bound`: outside it, one line naming
+    the option, the range and why, and exit 2. The help shows the range as the metavar."""
+
+    name = "integer"
+
+    def __init__(self, bound: Bound) -> None:
+        self.bound = bound
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        return self.bound.describe()
+
+    def convert(self, value, param, ctx) -> int:
+        v = value if isinstance(value, int) else click.INT.convert(value, param, ctx)
+        name = param.opts[0] if param is not None and param.opts else "value"
+        return self.bound.check(v, name)
 
 
 def table_option(default: str = "measured", help_text: str | None = None):
@@ -31,15 +51,28 @@ def effect_option():
     )
 
 
-def load_with_effects(table_spec: str, effect_specs: tuple[str, ...] = ()) -> GaitTable:
-    """Resolve a table and add effects given on the command line to the table's own."""
-    table = resolve_table(table_spec)
-    extra = [parse_effect(s) for s in effect_specs]
-    names = [e.name for e in table.effects] + [e.name for e in extra]
-    dup = {n for n in names if names.count(n) > 1}
-    if dup:
-        raise InputError(f"effect {sorted(dup)[0]} given twice")
-    return table.with_effects(tuple(table.effects) + tuple(extra)) if extra else table
+def _load_modules(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) -> None:
+    try:
+        for path in value:
+            load_effects_module(path)
+    except InputError as e:  # raised while parsing, before the command's own error handling
+        click.echo(f"{ctx.find_root().info_name}: error: {e}", err=True)
+        ctx.exit(exit_code(e))
+
+
+def effects_module_option():
+    """``--effects-module FILE`` (repeatable): user-defined effects, loaded before any other
+    option is used, so tables and ``--effect`` may name them."""
+    return click.option(
+        "--effects-module",
+        multiple=True,
+        metavar="FILE.py",
+        is_eager=True,
+        expose_value=False,
+        callback=_load_modules,
+        help="Python file defining effects with pac_host.model.effects.register_effect "
+             "(repeatable; see docs/diagnose.md).",
+    )
 
 
 def progress_enabled() -> bool:

@@ -21,7 +21,7 @@ import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
-from pac_host.errors import PacError
+from pac_host.errors import TOOLKIT_ERRORS, PacError
 from pac_protocol.errors import NoAnswer, StampReset
 from pac_protocol.link import READY_TIMEOUT_S, StampLink
 from pac_protocol.messages import Boot, Cycle, Done, HelloReply, Reason, State, StatusReply
@@ -182,7 +182,7 @@ class StampRobot:
         try:
             return self._follow(n, n0, on_cycle, seen)
         except KeyboardInterrupt:  # a person wants the robot to stop: tell it, best effort
-            with contextlib.suppress(PacError):
+            with contextlib.suppress(*TOOLKIT_ERRORS):
                 self.stop()
             raise
 

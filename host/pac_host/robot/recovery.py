@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import ClassVar, TypeVar
 
-from pac_host.errors import PacError
+from pac_host.errors import TOOLKIT_ERRORS, PacError
 from pac_host.robot.api import RobotReset, RobotSilent, StampRobot
 from pac_host.robot.observers import ObserverError
 from pac_protocol.errors import NoAnswer, StampReset
@@ -87,7 +87,7 @@ def with_redos(robot: StampRobot, attempt: Callable[[int], T], note: Callable[[d
             note({"type": "redo", "attempt": k + 1, "why": f"{type(e).__name__}: {e}"})
             try:
                 restart_session(robot)
-            except PacError as again:
+            except TOOLKIT_ERRORS as again:
                 raise PacError(f"{e} (redoing the test: {again})") from None
             forget = getattr(observer, "forget", None)
             if forget is not None:
