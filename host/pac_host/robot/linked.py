@@ -6,8 +6,8 @@ from the observed path (:func:`pac_host.coverage.coverage_of_poses`) or from the
 count. Every observation is appended to the run's log before it is used, so a robot that stops
 answering mid-run leaves a log holding everything seen up to then.
 
-A test whose link broke down mid-way (the robot silent or reset, the observer out of step or
-silent, after the link's own retries and resynchronisations) is redone from its start, at most
+A test whose link broke down mid-way (the robot silent or reset, after the link's own retries
+and resynchronisations) is redone from its start, at most
 ``redos`` times: the robot is stopped and said HELLO to again (a fresh session), re-placed (the
 operator is asked again, or the emulator is placed), and the test runs again. Every retry,
 resync, dropped report and redone test is logged as it happens and counted in

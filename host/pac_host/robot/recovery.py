@@ -1,10 +1,10 @@
 """Recovery above the link: a test whose link broke down mid-way is redone from its start.
 
 The link (:class:`pac_protocol.link.StampLink`) retries a request and resynchronises with
-STATUS before it gives up. When it does give up during a test, or the robot resets, or the
-observer loses step, :func:`with_redos` stops the robot, starts a fresh session (HELLO: allowed
-here, since no request is pending) and runs the whole test again, up to a bound; only then the
-error goes up, as it would have without recovery. :class:`Recovery` counts what happened.
+STATUS before it gives up. When it does give up during a test, or the robot resets,
+:func:`with_redos` stops the robot, starts a fresh session (HELLO: allowed here, since no
+request is pending) and runs the whole test again, up to a bound; only then the error goes up,
+as it would have without recovery. :class:`Recovery` counts what happened.
 """
 
 from __future__ import annotations
@@ -16,13 +16,14 @@ from typing import ClassVar, TypeVar
 
 from pac_host.errors import TOOLKIT_ERRORS, PacError
 from pac_host.robot.api import RobotReset, RobotSilent, StampRobot
-from pac_host.robot.observers import ObserverError
 from pac_protocol.errors import NoAnswer, StampReset
 from pac_protocol.messages import State
 
 REDOS = 2  # a broken-down test is redone from its start at most this often
 IDLE_POLLS = 10  # STATUS asked at most this often for a stopped robot to become idle
-BROKEN_LINK = (RobotSilent, RobotReset, NoAnswer, StampReset, ObserverError)
+# the robot's link broke down; an observer's error is not among them: a marker lost from a
+# camera's view, or a tracker that stopped, happens again on a redo
+BROKEN_LINK = (RobotSilent, RobotReset, NoAnswer, StampReset)
 
 T = TypeVar("T")
 
