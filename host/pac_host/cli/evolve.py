@@ -16,9 +16,10 @@ from pac_host.cli.options import (
     search_evaluations_option,
 )
 from pac_host.errors import InputError
-from pac_host.evolve import EvolveConfig, evolve, load_config, save_config
+from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
 from pac_host.model.table import BUILTIN
 from pac_host.robot.connect import connect
+from pac_host.robot.recovery import describe_counts
 
 
 @click.command("evolve")
@@ -116,6 +117,9 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
     if last:
         click.echo(f"operational turn cycle {last['operational']} (fitness "
                    f"{last['operational_fitness']} on the robot); files in {root}")
+        rec = recovery_summary(root)
+        if rec:
+            click.echo(describe_counts(rec))
 
 
 def _spec(table: str) -> str:
