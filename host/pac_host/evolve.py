@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -57,6 +57,10 @@ class EvolveConfig:
     initial_generations: int = 200
     model: str = "measured"
     robot: dict = field(default_factory=dict)  # what played the robot (a resume reuses it)
+    correction: str = pal.PALConfig.correction
+    structure: str = pal.PALConfig.structure
+    tests: str = pal.PALConfig.tests
+    operational: str = pal.PALConfig.operational
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -72,13 +76,24 @@ class EvolveConfig:
                 raise InputError(f"--{name.replace('_', '-')} must be >= 1")
         if self.cga_population < 4 or self.model_population < 4:
             raise InputError("populations must hold at least 4")
+        self.pal().check()
 
     def pal(self) -> pal.PALConfig:
         return pal.PALConfig(
             method=self.method, model_fitness=self.model_fitness,
             generations=self.generations, interval=self.interval,
             model_generations=self.model_generations, cga_population=self.cga_population,
-            model_population=self.model_population, budget=self.budget)
+            model_population=self.model_population, budget=self.budget,
+            correction=self.correction, structure=self.structure, tests=self.tests,
+            operational=self.operational)
+
+    def for_counts_only(self) -> EvolveConfig:
+        """The settings to use when the observer reports coverage counts, not paths: the
+        paper's six coverage differences and its model GA (nothing else can use counts)."""
+        return replace(self, correction="ga", model_fitness="coverage")
+
+    def needs_paths(self) -> bool:
+        return self.correction == "fit" or self.model_fitness == "steps"
 
 
 class RunInterrupted(PacError):

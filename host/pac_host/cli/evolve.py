@@ -8,10 +8,12 @@ from pathlib import Path
 import click
 
 from pac_host.cli.link_options import ask, confirm, emulator_options, given, link_options
+from pac_host.cli.options import learning_options
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, save_config
 from pac_host.model.table import BUILTIN
 from pac_host.robot.connect import connect
+from pac_host.robot.observers import ManualObserver
 
 
 @click.command("evolve")
@@ -42,9 +44,11 @@ from pac_host.robot.connect import connect
               help="Model GA generations per punctuation.")
 @click.option("--initial-generations", default=200, show_default=True, type=int,
               help="CGA generations on the model before the first test.")
+@learning_options
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
-               port, observer_spec, placer, **sim) -> None:
+               correction, structure, tests, operational, port, observer_spec, placer,
+               **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
     Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
@@ -81,11 +85,18 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            model_generations=model_generations, cga_population=cga_population,
                            model_population=model_population, budget=budget,
                            initial_generations=initial_generations,
-                           model=_spec(model_spec), robot=_robot(port, observer_spec, sim))
+                           model=_spec(model_spec), robot=_robot(port, observer_spec, sim),
+                           correction=correction, structure=structure, tests=tests,
+                           operational=operational)
         cfg.check()
     emu = emulator_options(sim, port)
     with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:
         click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
+        if resume_dir is None and isinstance(conn.observer, ManualObserver) and cfg.needs_paths():
+            cfg = cfg.for_counts_only()
+            click.echo("the observer reports coverage counts only, not paths: using the "
+                       "paper's model GA with its six coverage differences "
+                       "(--correction ga --model-fitness coverage)")
 
         def show(rec: dict) -> None:
             figs = "/".join(str(o["fitness"]) for o in rec["observed"])

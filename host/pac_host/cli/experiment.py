@@ -8,7 +8,12 @@ from pathlib import Path
 
 import click
 
-from pac_host.cli.options import effect_option, load_with_effects, progress_enabled
+from pac_host.cli.options import (
+    effect_option,
+    learning_options,
+    load_with_effects,
+    progress_enabled,
+)
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
@@ -31,7 +36,9 @@ from pac_host.plots import experiment_plots
 @click.option("--seed", "base_seed", default=0, show_default=True, type=int,
               help="Base seed: the whole experiment is a function of it.")
 @click.option("--actual", "actual_spec", default="shifted", show_default=True,
-              metavar="measured|shifted|FILE", help="The simulated actual robot's table.")
+              metavar="measured|shifted|FILE",
+              help="The simulated actual robot: a built-in table or a pac-gait-table/1 file "
+                   "(its effects included).")
 @effect_option()
 @click.option("--model", "model_spec", default="measured", show_default=True,
               metavar="measured|shifted|FILE", help="The model the CGA starts on.")
@@ -47,10 +54,18 @@ from pac_host.plots import experiment_plots
               help="Long CGA runs on the actual table that establish the optimum (raised to "
                    "the best any run shows on the robot).")
 @click.option("--optimum-generations", default=3000, show_default=True, type=int)
+@click.option("--best-known", type=int, default=None,
+              help="The best coverage fitness known on the actual robot (verified with "
+                   "`pac-host simulate`); punctuations to the target count against the higher "
+                   "of it and the experiment's own optimum.")
+@click.option("--model-generations", default=40, show_default=True, type=int,
+              help="Model GA generations per punctuation.")
+@learning_options
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
-                   optimum_runs, optimum_generations, resume) -> None:
+                   optimum_runs, optimum_generations, best_known, model_generations, correction,
+                   structure, tests, operational, resume) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
@@ -69,7 +84,10 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
         base_seed=base_seed, initial_generations=initial_generations,
         optimum_runs=optimum_runs, optimum_generations=optimum_generations,
-        pal=replace(PALConfig(), budget=check_budget(budget), model_fitness=model_fitness),
+        best_known=best_known,
+        pal=replace(PALConfig(), budget=check_budget(budget), model_fitness=model_fitness,
+                    model_generations=model_generations, correction=correction,
+                    structure=structure, tests=tests, operational=operational),
     )
     actual = load_with_effects(actual_spec, effect_specs)
     model = resolve_table(model_spec)
@@ -94,6 +112,16 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         click.echo(f"reached optimum, Fisher exact p = {t['reached_optimum_fisher_exact_p']:.4g}; "
                    f"final coverage, Wilcoxon p = {t['final_coverage_wilcoxon']['p_value']:.4g}; "
                    f"mean coverage, Wilcoxon p = {t['mean_coverage_wilcoxon']['p_value']:.4g}")
+    rt = summary["robot_time"]
+    click.echo(f"best known {rt['best_known']}; target {rt['target']:.0%} of it")
+    for m, s in rt["methods"].items():
+        med = s["median_punctuations_to_target"]
+        click.echo(f"{m:>8}: reached the target on {s['reached_target']}/{s['seeds']} seeds, "
+                   f"median {med if med is not None else 'not reached'} punctuations"
+                   + (f" ({s['median_robot_hours_to_target']:.1f} robot hours)"
+                      if s["median_robot_hours_to_target"] is not None else "")
+                   + f"; ended at {rt['final_target']:.0%} on {s['ended_at_final_target']}/"
+                   f"{s['seeds']}; {s['robot_hours_per_run']:.1f} robot hours per run")
     click.echo(f"summary: {out_dir / 'summary.json'}")
     click.echo("plots: " + ", ".join(str(p) for p in plots))
 

@@ -45,3 +45,34 @@ def load_with_effects(table_spec: str, effect_specs: tuple[str, ...] = ()) -> Ga
 def progress_enabled() -> bool:
     """Progress bars go to stderr, and only when it is a terminal."""
     return sys.stderr.isatty()
+
+
+def learning_options(f):
+    """How PAL learns the robot: the model correction, the tests, the operational rule
+    (defaults: :class:`pac_host.pal.PALConfig`'s; ``--correction ga --tests paper
+    --operational best --model-fitness coverage`` is the paper's method)."""
+    from pac_host import model_fit, pal, test_selection
+
+    d = pal.PALConfig()
+    opts = [
+        click.option("--correction", default=d.correction, show_default=True,
+                     type=click.Choice(pal.CORRECTIONS),
+                     help="ga: the model GA alone (the paper); fit: the whole table fitted to "
+                          "every observed step (effects of the library, then rows weighted by "
+                          "their evidence), then --model-generations of the model GA on top."),
+        click.option("--structure", default=d.structure, show_default=True,
+                     type=click.Choice(model_fit.STRUCTURES),
+                     help="With --correction fit: fit the effects library (effects) or only "
+                          "the rows (none)."),
+        click.option("--tests", default=d.tests, show_default=True,
+                     type=click.Choice(test_selection.CHOICES),
+                     help="paper: the best turn cycle and two perturbations; informative: the "
+                          "best and the two candidates the models disagree on most."),
+        click.option("--operational", default=d.operational, show_default=True,
+                     type=click.Choice(pal.OPERATIONAL),
+                     help="best: only the CGA's best may replace the operational turn cycle "
+                          "(the paper); tested: any tested turn cycle that did better."),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f
