@@ -50,6 +50,7 @@ MIN_RUNS_FOR_EFFECTS = 2  # the diagnosis holds whole runs out: it needs at leas
 STRUCTURE_RUNS = 9  # the effects are fitted on the latest runs (three punctuations): the
 # diagnosis's cost grows with the steps, and three punctuations hold 600 steps
 HOLDOUT_FRACTION = 0.3
+MIN_ROWS_SPLIT = 4  # a table-level effect is judged on held-out rows: at least 3 + 1 rows
 MIN_ROWS_FOR_PRIOR = 4  # rows with strong evidence needed to fit the prior's spread
 STRONG_EVIDENCE = 10  # steps for a row's offset to count in the prior's spread
 TAU_FLOOR = 0.02  # the prior's spread never falls below this share of DEFAULT_SCALE
@@ -115,22 +116,69 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
                   ) -> tuple[Effect, ...]:
     """Effects of the library the latest runs show on top of ``base`` (none before two runs).
 
-    First the whole library on ``base``; then, so that wrong rows do not hide a sequence or
-    world effect, those effects again on the table whose used rows are fitted freely (their
-    own least-squares rows).
+    Table-level effects must carry over to rows no test used, so they are judged by held-out
+    rows, not held-out runs (the three tests of a punctuation share their rows): the runs are
+    cut into stretches of one repeated gait cycle and the stretches of about 30% of the rows
+    are held out. Then, so that wrong rows do not pass for a sequence or world effect, those
+    effects are selected on whole runs of the table whose used rows are fitted freely.
     """
     runs = list(runs)[-STRUCTURE_RUNS:]
     if len(runs) < MIN_RUNS_FOR_EFFECTS:
         return ()
-    fit, hold = split_runs(runs, HOLDOUT_FRACTION, rng)
-    found = tuple(diagnose(base, fit, hold, rng).selected)
-    have = {e.name for e in tuple(base.effects) + found}
+    have = {e.name for e in base.effects}
+    table_lib = [n for n, sp in EFFECT_SPECS.items() if sp.stage == "table" and n not in have]
     seq_lib = [n for n, sp in EFFECT_SPECS.items() if sp.stage != "table" and n not in have]
+    found: tuple[Effect, ...] = ()
+    fit_s, hold_s = _split_by_rows(_stretches(runs), rng)
+    if table_lib and fit_s and hold_s:
+        found = tuple(diagnose(base, fit_s, hold_s, rng, table_lib).selected)
     if not seq_lib:
         return found
     table_fx, seq_fx = _split_effects(tuple(base.effects) + found)
+    fit, hold = split_runs(runs, HOLDOUT_FRACTION, rng)
     free = _rows_only(GaitTable(effective_rows(base.rows, table_fx), (), base.name), fit, seq_fx)
-    return found + tuple(diagnose(free, fit, hold, rng, seq_lib).selected)
+    more = diagnose(free, fit, hold, rng, seq_lib).selected
+    batch = batch_of(runs)
+    keep = [e for e in more if _moves_anything(free, batch, e)]
+    return found + tuple(keep)
+
+
+def _moves_anything(table: GaitTable, batch, effect: Effect) -> bool:
+    """False for an effect fitted to nothing (noise-free runs let a null effect through)."""
+    a = predicted_moves(table.rows, batch, table.effects)
+    b = predicted_moves(table.rows, batch, tuple(table.effects) + (effect,))
+    return bool(np.abs(a - b).max() > 1e-9)
+
+
+def _stretches(runs: Sequence[Run]) -> list[Run]:
+    """Each stretch of one gait cycle repeated, as a run of its own; the first step after a
+    change of gait is left out (a transition would blend it with the gait before)."""
+    out = []
+    for r in runs:
+        ids, poses = r.gait_cycles, r.all_poses()
+        start = 0
+        for i in range(1, len(ids) + 1):
+            if i < len(ids) and ids[i] == ids[start]:
+                continue
+            lo = start + (start > 0)
+            if i - lo >= 2:
+                out.append(Run(f"{r.run_id}s{lo}", poses[lo], ids[lo:i], poses[lo + 1: i + 1],
+                               r.cycles_since_power_on + lo))
+            start = i
+    return out
+
+
+def _split_by_rows(stretches: list[Run], rng: np.random.Generator
+                   ) -> tuple[list[Run], list[Run]]:
+    """(fitting, held-out) stretches, about ``HOLDOUT_FRACTION`` of the rows held out; both
+    empty when fewer than ``MIN_ROWS_SPLIT`` rows were seen."""
+    rows = np.unique([int(s.gait_cycles[0]) for s in stretches]) if stretches else []
+    if len(rows) < MIN_ROWS_SPLIT:
+        return [], []
+    k = max(1, round(HOLDOUT_FRACTION * len(rows)))
+    hold = set(rng.permutation(rows)[:k].tolist())
+    return ([s for s in stretches if int(s.gait_cycles[0]) not in hold],
+            [s for s in stretches if int(s.gait_cycles[0]) in hold])
 
 
 def _rows_only(base: GaitTable, runs: Sequence[Run], seq_fx: Sequence[Effect]) -> GaitTable:

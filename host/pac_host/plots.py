@@ -161,7 +161,9 @@ def learning_progress(records: list[dict], path: Path, title: str = "Learning pr
     ax2 = ax.twinx()
     ax2.plot(gens, [r["model_error_before"] for r in records], color="tab:gray", lw=1, ls=":",
              label="model error on the new tests")
-    ax2.set_ylabel("model error (sum of 6 differences)")
+    steps = bool(records) and records[-1].get("model_fitness") == "steps"
+    ax2.set_ylabel("model error (RMS of the observed steps, cm)" if steps
+                   else "model error (sum of 6 differences)")
     lines = ax.get_legend_handles_labels()
     lines2 = ax2.get_legend_handles_labels()
     ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=7, loc="upper left")

@@ -12,6 +12,7 @@ from pac_host.coverage import parse_turn_cycle
 from pac_host.errors import InputError
 from pac_host.experiment import punctuations_to, robot_time_report
 from pac_host.model import measured_table, shifted_table
+from pac_host.model.table import save_table
 from pac_host.model.effects import effective_rows
 from pac_host.robot_time import GAIT_PERIOD_S, PLACE_S, seconds_of_tests
 
@@ -180,3 +181,43 @@ def test_choose_tests_keeps_the_papers_stream_for_the_paper():
     b = np.concatenate([state.cga_pop[:1], pal.perturbations(state.cga_pop[0], rng, cfg)])
     assert np.array_equal(a, b)
     _ = cga  # the CGA population is what the candidates come from
+
+
+def test_experiment_on_a_robot_file_reports_robot_time(tmp_path):
+    from click.testing import CliRunner
+
+    from pac_host.cli.main import main
+
+    robot = tmp_path / "robot.json"
+    save_table(robots.build("library_on_changed"), robot)
+    out = tmp_path / "exp"
+    res = CliRunner().invoke(main, [
+        "experiment", "--seeds", "2", "--generations", "40", "--initial-generations", "20",
+        "--optimum-runs", "1", "--optimum-generations", "30", "--methods", "partial,oracle",
+        "--actual", str(robot), "--correction", "fit", "--model-generations", "0",
+        "--tests", "informative", "--operational", "tested", "--best-known", "40",
+        "--out", str(out)], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    s = json.loads((out / "summary.json").read_text())
+    assert {e["name"] for e in s["actual"]["effects"]} == {"transition", "yaw_bias"}
+    assert s["pal_config"]["correction"] == "fit"
+    rt = s["robot_time"]
+    assert rt["best_known"] == 40 and set(rt["methods"]) == {"partial", "oracle"}
+    for r in s["runs"]:
+        assert len(r["robot_hours"]) == 2 and 0 < r["robot_hours"][0] < r["robot_hours"][1]
+        assert r["punctuations_to_target"] is None  # 36 is out of reach in 40 generations
+    assert (out / "robot_time.png").read_bytes()[:4] == b"\x89PNG"
+    assert "punctuations" in res.output and "robot hours" in res.output
+    bad = CliRunner().invoke(main, ["experiment", "--best-known", "0", "--out", str(out)])
+    assert bad.exit_code == 2 and "--best-known must be at least 1" in bad.output
+
+
+def test_independent_row_errors_are_not_taken_for_an_effect():
+    # each row wrong on its own: an effect fitted to some rows must not move the others
+    actual = robots.build("noisy_rows")
+    tests = cga.random_population(np.random.default_rng(1), 3)
+    post = model_fit.correct(measured_table(), _observe(actual, tests), np.random.default_rng(0))
+    assert post.selected == ()
+    unused = post.evidence == 0
+    assert np.abs(post.mean - measured_table().rows)[unused].max() < 1e-9
+    assert np.abs(post.mean - actual.rows)[~unused].max() < 1e-6
