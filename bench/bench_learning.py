@@ -11,7 +11,8 @@ Targets (the issue's, for the default method, on every robot, 30 seeds): 90% of 
 on at least 27 of 30 seeds with a median of at most 10 punctuations; 95% at the end on at least
 27 of 30. The full measurement takes hours on a quiet 2-core machine:
 ``python bench/run.py --only learning``; ``--quick`` runs 2 seeds on each robot.
-Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows --methods new``.
+Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
+--methods paper,default``.
 """
 
 from __future__ import annotations
@@ -26,20 +27,15 @@ import numpy as np
 from pac_host import robots
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import measured_table, shifted_table
-from pac_host.pal import PALConfig
+from pac_host.pal import PAPER, PALConfig
 
 # the learning methods compared: the paper's, and the whole-table correction
 METHODS = {
-    "paper": PALConfig(correction="ga", tests="paper", operational="best",
-                       model_fitness="coverage"),
-    "steps": PALConfig(correction="ga", tests="paper", operational="best",
-                       model_fitness="steps"),
-    "new": PALConfig(correction="fit", model_generations=0, tests="informative",
-                     operational="tested"),
-    "new_paper_tests": PALConfig(correction="fit", model_generations=0, tests="paper",
-                                 operational="tested"),
-    "fit_ga": PALConfig(correction="fit", model_generations=40, tests="informative",
-                        operational="tested"),
+    "paper": PALConfig(**PAPER),  # the paper's six differences, partial recombination
+    "steps": PALConfig(**{**PAPER, "model_fitness": "steps"}),
+    "default": PALConfig(),  # whole-table fit, model GA on top, informative tests
+    "fit_only": PALConfig(model_generations=0),  # the fitted table alone, no model GA
+    "paper_tests": PALConfig(tests="paper"),  # the default with the paper's tests
 }
 BEST_KNOWN = {"shifted": 34}  # verified with pac-host simulate (DESIGN.md 2.6)
 
@@ -84,7 +80,7 @@ def _targets(res: dict, seeds: int) -> dict:
     need = int(np.ceil(0.9 * seeds))
     t = {}
     for rname, by in res.items():
-        fig = by.get("new", {}).get("partial")
+        fig = by.get("default", {}).get("partial")
         if fig is None:
             continue
         med = fig["median_punctuations_to_target"]
@@ -100,7 +96,7 @@ def _targets(res: dict, seeds: int) -> dict:
 def run(quick: bool) -> dict:
     seeds = 2 if quick else 30
     with tempfile.TemporaryDirectory() as tmp:
-        res = measure(list(actual_robots()), ["paper", "new"], seeds, Path(tmp),
+        res = measure(list(actual_robots()), ["paper", "default"], seeds, Path(tmp),
                       optimum_runs=2 if quick else 8,
                       recombination=("full", "partial", "oracle"))
     return {"seeds": seeds, "results": res, "targets": _targets(res, seeds)}
@@ -110,7 +106,7 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--robots", default=",".join(actual_robots()))
-    ap.add_argument("--methods", default="paper,new")
+    ap.add_argument("--methods", default="paper,default")
     ap.add_argument("--recombination", default="partial,oracle")
     ap.add_argument("--optimum-runs", type=int, default=2)
     ap.add_argument("--optimum-generations", type=int, default=3000)

@@ -120,7 +120,7 @@ def pal_run(
         record["method"] = method
         curve.append((record["generation"], record["operational_fitness"]))
         seconds.append(record["robot_seconds"])
-        record["model_error"] = _model_error(st.models[0], truth)
+        record["model_error"] = _model_error(effective_rows(st.models[0], st.model_effects), truth)
         record["model"] = st.models[0].round(6).tolist()
         if log_path is not None:
             line = json.dumps({"seed": seed, **record}) + "\n"
@@ -136,7 +136,8 @@ def pal_run(
         "coverage": [f for _, f in curve],
         "robot_hours": _hours(seconds),
         "operational": format_turn_cycle(state.operational),
-        "final_model_error": _model_error(state.models[0], truth),
+        "final_model_error": _model_error(effective_rows(state.models[0], state.model_effects),
+                                          truth),
         "final_model": state.models[0].round(6).tolist(),
     }
 

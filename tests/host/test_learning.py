@@ -96,8 +96,8 @@ def test_operational_takes_any_tested_turn_cycle_that_did_better():
         def run_tests(self, tests):
             return [pal.TestResult(f, f, f, 0) for f in (4, 2, 9)]
 
-    cfg = pal.PALConfig(cga_population=8, model_population=4, model_generations=1,
-                        operational="tested")
+    cfg = pal.PALConfig(**{**pal.PAPER, "cga_population": 8, "model_population": 4,
+                           "model_generations": 1, "operational": "tested"})
     rng = np.random.default_rng(0)
     state = pal.initial_state(measured_table(), rng, cfg)
     state, rec = pal.punctuate(state, Robot(), rng, cfg)
@@ -174,7 +174,7 @@ def test_robots_are_what_the_docs_say():
 
 
 def test_choose_tests_keeps_the_papers_stream_for_the_paper():
-    cfg = pal.PALConfig(cga_population=8, model_population=4)
+    cfg = pal.PALConfig(**{**pal.PAPER, "cga_population": 8, "model_population": 4})
     state = pal.initial_state(measured_table(), np.random.default_rng(0), cfg)
     a = pal.choose_tests(state, np.random.default_rng(9), cfg)
     rng = np.random.default_rng(9)
