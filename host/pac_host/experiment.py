@@ -20,16 +20,18 @@ which runs a resumed experiment skips.
 from __future__ import annotations
 
 import json
+import tempfile
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from pac_host import cga, pal, stats
-from pac_host.coverage import fitness_of_score, format_turn_cycle, simulate
+from pac_host import cga, model_ga, pal, stats
+from pac_host.coverage import check_budget, fitness_of_score, format_turn_cycle, simulate
 from pac_host.errors import InputError
+from pac_host.executors import Executor, local_executor
 from pac_host.files import write_atomic
 from pac_host.model.effects import effective_rows
 from pac_host.model.table import GaitTable, measured_table, shifted_table
@@ -66,6 +68,10 @@ class ExperimentConfig:
         if bad or not self.methods or len(set(self.methods)) != len(self.methods):
             raise InputError(f"--methods takes {', '.join(METHODS)} (each once), got "
                              f"{','.join(self.methods)}")
+        if self.pal.model_fitness not in model_ga.FITNESSES:
+            raise InputError(f"--model-fitness takes {', '.join(model_ga.FITNESSES)}, got "
+                             f"{self.pal.model_fitness!r}")
+        check_budget(self.pal.budget)
 
 
 def _rng(base: int, seed: int, stage: int, extra: int = 0) -> np.random.Generator:
@@ -277,23 +283,34 @@ def compare(results: list[dict], cfg: ExperimentConfig, optimum: int) -> dict:
     return out
 
 
-def _map(fn: Callable, args: list[tuple], jobs: int,
+def _map(fn: Callable, args: list[tuple], jobs: int | Executor,
          done: Callable[[object], None] | None = None) -> list:
-    if jobs <= 1 or len(args) <= 1:
-        out = []
-        for a in args:
-            out.append(fn(*a))
-            if done:
-                done(out[-1])
-        return out
-    with ProcessPoolExecutor(max_workers=jobs) as ex:
-        futs = [ex.submit(fn, *a) for a in args]
-        out = []
-        for fut in futs:
-            out.append(fut.result())
-            if done:
-                done(out[-1])
-        return out
+    """Map on the executor given, or on ``jobs`` local processes (see :mod:`pac_host.executors`)."""
+    if isinstance(jobs, Executor):
+        return jobs.map(fn, args, done)
+    with local_executor(jobs) as ex:
+        return ex.map(fn, args, done)
+
+
+def pal_run_detached(*args) -> tuple[dict, str]:
+    """:func:`pal_run` on a worker that cannot write this side's files: its log lines come back
+    with the result, to be appended once the run is whole (a rerun never writes twice)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "log.jsonl"
+        result = pal_run(*args, log_path=log)
+        return result, log.read_text() if log.exists() else ""
+
+
+def _map_pal_runs(args: list[tuple], jobs: int | Executor, log_path: Path,
+                  done: Callable[[object], None]) -> list[dict]:
+    if not isinstance(jobs, Executor) or jobs.shares_files:
+        return _map(partial(pal_run, log_path=log_path), args, jobs, done)
+
+    def landed(res: tuple[dict, str]) -> None:
+        with open(log_path, "a") as f:
+            f.write(res[1])
+        done(res[0])
+    return [r for r, _ in _map(pal_run_detached, args, jobs, landed)]
 
 
 def run_experiment(
@@ -301,11 +318,14 @@ def run_experiment(
     cfg: ExperimentConfig = ExperimentConfig(),
     model: GaitTable | None = None,
     actual: GaitTable | None = None,
-    jobs: int = 1,
+    jobs: int | Executor = 1,
     resume: bool = False,
     progress: Callable[[str, int, int], None] | None = None,
 ) -> dict:
-    """Run the experiment, writing log.jsonl as it goes and summary.json at the end."""
+    """Run the experiment, writing log.jsonl as it goes and summary.json at the end.
+
+    ``jobs``: local worker processes, or an :class:`~pac_host.executors.Executor` (a Dask
+    cluster); the results do not depend on it."""
     cfg.check()
     model = model or measured_table()
     actual = actual or shifted_table()
@@ -335,8 +355,8 @@ def run_experiment(
     pops = dict(zip(seeds_needed, _map(
         initial_population, [(model, s, cfg) for s in seeds_needed], jobs,
         tick("initial populations", len(seeds_needed))), strict=True))
-    fresh = _map(pal_run, [(model, actual, s, m, pops[s], cfg, log_path) for s, m in todo],
-                 jobs, tick("PAL runs", len(todo)))
+    fresh = _map_pal_runs([(model, actual, s, m, pops[s], cfg) for s, m in todo],
+                          jobs, log_path, tick("PAL runs", len(todo)))
     results = fresh + [_result_from_log(recs, s, m) for (s, m), recs in done_runs.items()]
     searched = max(r["fitness"] for r in optimum_runs)
     observed = max(max(r["coverage"]) for r in results)

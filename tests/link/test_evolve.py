@@ -107,7 +107,7 @@ def test_bad_input_is_one_line(tmp_path):
 
     one_line(invoke("evolve", "--generations", "0"), 2, "--out DIR is required")
     one_line(invoke("evolve", "--resume", str(tmp_path)), 2, "no config.json")
-    one_line(invoke("evolve", "--out", str(tmp_path / "o"), "--observer", "camera"), 2,
+    one_line(invoke("evolve", "--out", str(tmp_path / "o"), "--observer", "webcam"), 2,
              "--observer: expected")
     one_line(invoke("evolve", "--out", str(tmp_path / "o"), "--sim-noise", "x"), 2,
              "--sim-noise")

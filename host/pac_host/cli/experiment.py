@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from pac_host.cli.cluster_options import scheduler_options
 from pac_host.cli.options import (
     effect_option,
     learning_options,
@@ -15,6 +16,7 @@ from pac_host.cli.options import (
     progress_enabled,
 )
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
+from pac_host.executors import make_executor
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
 from pac_host.pal import PALConfig
@@ -62,10 +64,11 @@ from pac_host.plots import experiment_plots
               help="Model GA generations per punctuation.")
 @learning_options
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
+@scheduler_options
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
                    optimum_runs, optimum_generations, best_known, model_generations, correction,
-                   structure, tests, operational, resume) -> None:
+                   structure, tests, operational, resume, scheduler, connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
@@ -92,7 +95,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
     actual = load_with_effects(actual_spec, effect_specs)
     model = resolve_table(model_spec)
     bar = _Progress() if progress_enabled() else None
-    summary = run_experiment(out_dir, cfg, model, actual, jobs, resume, bar)
+    with make_executor(jobs, scheduler, connect_timeout) as engine:
+        summary = run_experiment(out_dir, cfg, model, actual, engine, resume, bar)
     if bar:
         bar.close()
     plots = experiment_plots(summary, out_dir)

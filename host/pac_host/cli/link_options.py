@@ -14,10 +14,12 @@ OPTIONS = [
                  help="Serial port of the robot (or a pyserial URL, or $PAC_PORT). Without it "
                       "the built-in emulator plays the robot."),
     click.option("--observer", "observer_spec", default=None,
-                 metavar="tracker:HOST:PORT|pipe:PATH|manual",
+                 metavar="tracker:HOST:PORT|pipe:PATH|camera:SOURCE[,OPTS]|manual",
                  help="Where the robot really is: a tracker stream (TCP or named pipe, lines "
-                      "'POSE seq gait power_on x y h') or the operator at a prompt. Default "
-                      "with the emulator: its tracker."),
+                      "'POSE seq gait power_on x y h'), an overhead camera (SOURCE a camera "
+                      "index, video or folder with calib=FILE, or sim: the emulator's virtual "
+                      "camera; docs/camera.md) or the operator at a prompt. Default with the "
+                      "emulator: its tracker."),
     click.option("--placer", default="operator", show_default=True,
                  type=click.Choice(["operator", "tracker"]),
                  help="With --port: who puts the robot at each start pose: a person (asked, "

@@ -39,15 +39,18 @@ def main() -> None:
     anytime learning).
 
     \b
-    Without hardware:  simulate, experiment (the paper's experiment), evolve (PAL over the
+    Without hardware:  simulate, experiment (the paper's experiment), sweep (experiments over
+                       a grid of settings, on a Dask cluster too), evolve (PAL over the
                        serial protocol against the built-in emulator)
     On the robot:      robot hello|status|..., flash, evolve --port, measure
     When model and robot disagree:  diagnose --model TABLE --runs RUNS.jsonl
+    Where the robot is:  camera sheets|calibrate|check|serve, --observer camera:...
     """
 
 
 def _register() -> None:
     from pac_host.cli import (
+        camera,
         diagnose,
         evolve,
         experiment,
@@ -55,10 +58,12 @@ def _register() -> None:
         measure,
         robot,
         simulate,
+        sweep,
         table,
     )
 
-    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash):
+    for mod in (table, simulate, experiment, robot, evolve, measure, diagnose, flash, camera,
+                sweep):
         mod.register(main)
 
 

@@ -6,8 +6,7 @@ import sys
 
 import click
 
-from pac_host.errors import InputError
-from pac_host.model import GaitTable, parse_effect, resolve_table
+from pac_host.model import load_with_effects  # noqa: F401  (re-exported for the commands)
 
 
 def table_option(default: str = "measured", help_text: str | None = None):
@@ -29,17 +28,6 @@ def effect_option():
         metavar="NAME:P=V,...",
         help="Add an unmodelled effect, e.g. transition:alpha=0.3 (repeatable).",
     )
-
-
-def load_with_effects(table_spec: str, effect_specs: tuple[str, ...] = ()) -> GaitTable:
-    """Resolve a table and add effects given on the command line to the table's own."""
-    table = resolve_table(table_spec)
-    extra = [parse_effect(s) for s in effect_specs]
-    names = [e.name for e in table.effects] + [e.name for e in extra]
-    dup = {n for n in names if names.count(n) > 1}
-    if dup:
-        raise InputError(f"effect {sorted(dup)[0]} given twice")
-    return table.with_effects(tuple(table.effects) + tuple(extra)) if extra else table
 
 
 def progress_enabled() -> bool:

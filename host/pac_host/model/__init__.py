@@ -5,6 +5,7 @@ from pac_host.model.kinematics import integrate, rollout
 from pac_host.model.table import (
     GaitTable,
     load_table,
+    load_with_effects,
     measured_table,
     resolve_table,
     save_table,
@@ -17,6 +18,7 @@ __all__ = [
     "GaitTable",
     "integrate",
     "load_table",
+    "load_with_effects",
     "measured_table",
     "parse_effect",
     "resolve_table",

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -166,3 +167,16 @@ def resolve_table(spec: str) -> GaitTable:
     if spec in BUILTIN:
         return BUILTIN[spec]()
     return load_table(spec)
+
+
+def load_with_effects(table_spec: str, effect_specs: Sequence[str] = ()) -> GaitTable:
+    """Resolve a table and add effects given as ``name:param=value,...`` to the table's own."""
+    from pac_host.model.effects import parse_effect
+
+    table = resolve_table(table_spec)
+    extra = [parse_effect(s) for s in effect_specs]
+    names = [e.name for e in table.effects] + [e.name for e in extra]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise InputError(f"effect {sorted(dup)[0]} given twice")
+    return table.with_effects(tuple(table.effects) + tuple(extra)) if extra else table

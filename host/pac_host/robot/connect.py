@@ -109,7 +109,8 @@ def _emulated(stack: contextlib.ExitStack, observer_spec: str | None, o: Emulato
     host, tport = sim.tracker.address
     placer = TrackerPlacer(host, tport)
     stack.callback(placer.close)
-    observer = open_observer(observer_spec or f"tracker:{host}:{tport}", ask, manual_mode)
+    observer = open_observer(observer_spec or f"tracker:{host}:{tport}", ask, manual_mode,
+                             world=sim.world)
     stack.callback(observer.close)
     sim.start()
     # at real-time factor 0 the emulated Stamp answers within milliseconds: fail fast

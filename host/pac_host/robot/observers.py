@@ -3,13 +3,16 @@
 An observer follows one run at a time: :meth:`Observer.begin` before it, :meth:`on_cycle` when
 the robot reports a finished gait cycle, :meth:`finish` when it has stopped. Every observation is
 handed to the ``record`` callback (the run's log, which appends and flushes it) before it is
-returned or used. Three kinds:
+returned or used. The kinds:
 
 - :class:`TrackerObserver`: a stream of ``POSE seq gait power_on x y h`` lines (the emulator's
   tracker feed, or an overhead camera) from a TCP socket or a named pipe; gives the pose after
   every gait cycle.
 - :class:`ManualObserver`: the operator types numbers at a prompt the caller provides; either
   the coverage figures of a run or the final pose. A reply that is not a number is asked again.
+- ``camera:...``: an overhead camera read by the host itself
+  (:class:`pac_host.camera.observer.CameraObserver`). A tracker stream that opens with
+  :data:`ASK_HEADER` (``pac-host camera serve``) is asked for each gait cycle's pose.
 
 A malformed line, a closed stream or silence raises :class:`ObserverError` naming the observer;
 nothing is ever filled in with zeros.
@@ -32,6 +35,9 @@ from pac_host.errors import InputError, PacError
 
 TRACKER_TIMEOUT_S = 3.0  # a camera's pose for a finished gait cycle should come well within this
 POWER_ON_MOD = 65536  # the Stamp's power-on count wraps at 16 bits
+# A stream that opens with this header wants to be asked: `CYCLE power_on index` for each gait
+# cycle (``pac-host camera serve``), and answers a POSE line or `LOST power_on why`.
+ASK_HEADER = "# pac-host camera"
 
 Record = Callable[[dict], None]
 Ask = Callable[[str], str]
@@ -165,10 +171,13 @@ class TrackerObserver:
         self._poses: list[tuple[float, float, float]] = []
         self._record: Record = lambda _: None
         self._run_id = ""
+        self._ask = False  # the stream answers requests (see ASK_HEADER)
+        self._asked = 0
 
     def begin(self, run_id: str, power_on_before: int, record: Record) -> None:
         self._run_id, self._n0, self._record = run_id, power_on_before, record
         self._poses = []
+        self._asked = 0
 
     def on_cycle(self, power_on: int) -> None:
         self._take_until((power_on - self._n0) % POWER_ON_MOD)
@@ -181,14 +190,24 @@ class TrackerObserver:
         """Read lines until the pose after gait cycle ``k`` of this run is in hand."""
         while len(self._poses) < k:
             want = len(self._poses) + 1
+            if self._ask and self._asked < want:
+                self.source.write_line(f"CYCLE {(self._n0 + want) % POWER_ON_MOD} {want}")
+                self._asked = want
             line = self.source.readline(self.timeout)
             if line is None:
                 raise ObserverError(
                     f"observer {self.name}: no pose for gait cycle {want} of run {self._run_id} "
                     f"within {self.timeout:g} s (is the tracker running and seeing the robot?)"
                 )
+            if line.startswith(ASK_HEADER):
+                self._ask = True
+                continue
             if not line.strip() or line.startswith("#"):
                 continue
+            if line.startswith("LOST"):
+                why = line.split(None, 2)[2] if len(line.split(None, 2)) == 3 else "lost"
+                raise ObserverError(f"observer {self.name}: lost observation of gait cycle "
+                                    f"{want} of run {self._run_id}: {why}")
             try:
                 p = parse_pose_line(line)
             except ValueError as e:
@@ -290,9 +309,14 @@ class ManualObserver:
 
 
 def open_observer(spec: str, ask: Ask | None = None, manual_mode: str = "figures",
-                  timeout: float = TRACKER_TIMEOUT_S) -> Observer:
-    """``tracker:HOST:PORT``, ``pipe:PATH`` or ``manual`` (needs ``ask``)."""
+                  timeout: float = TRACKER_TIMEOUT_S, world: object | None = None) -> Observer:
+    """``tracker:HOST:PORT``, ``pipe:PATH``, ``camera:SOURCE[,options]`` or ``manual`` (needs
+    ``ask``); ``world`` is the built-in emulator's, for ``camera:sim``."""
     kind, _, rest = spec.partition(":")
+    if kind == "camera":
+        from pac_host.camera.observer import open_camera
+
+        return open_camera(rest, world)
     if kind == "tracker":
         host, sep, port = rest.rpartition(":")
         if not sep or not port.isdigit() or not 0 < int(port) < 65536:
@@ -304,4 +328,5 @@ def open_observer(spec: str, ask: Ask | None = None, manual_mode: str = "figures
         if ask is None:
             raise InputError("--observer manual needs an operator at a prompt")
         return ManualObserver(ask, manual_mode)
-    raise InputError(f"--observer: expected tracker:HOST:PORT, pipe:PATH or manual, got {spec!r}")
+    raise InputError(f"--observer: expected tracker:HOST:PORT, pipe:PATH, camera:SOURCE or "
+                     f"manual, got {spec!r}")

@@ -1,0 +1,112 @@
+"""What the camera looks for: floor markers at known places, the robot's marker, the board
+that calibrates the lens. Every length is in cm in the floor frame of DESIGN.md 2.2 (x 0..180
+across the area, y up the area, z up from the floor); a marker's "up" edge (its first two
+corners in OpenCV's order) points to +y on the floor and to the robot's heading on the robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from pac_host.errors import InputError
+
+DICTIONARY = "DICT_4X4_50"  # few, large bits: robust at ~20 px per marker
+BOARD_DICTIONARY = "DICT_5X5_100"  # the lens board's own ids, never mistaken for floor markers
+AREA_X = (0.0, 180.0)
+AREA_Y = (0.0, 300.0)  # the part of the (upward unbounded) area a camera is set up to see
+BLOCK_CM = 60.0
+
+
+def dictionary(name: str) -> cv2.aruco.Dictionary:
+    code = getattr(cv2.aruco, name, None)
+    if not name.startswith("DICT_") or code is None:
+        raise InputError(f"unknown marker dictionary {name!r} (e.g. {DICTIONARY})")
+    return cv2.aruco.getPredefinedDictionary(code)
+
+
+@dataclass(frozen=True)
+class FloorMarker:
+    id: int
+    x: float  # centre, cm
+    y: float
+    size: float  # side of the black square, cm
+
+
+@dataclass(frozen=True)
+class RobotMarker:
+    id: int = 0
+    size: float = 12.0  # side of the black square, cm (10 cm is lost at some headings)
+    height: float = 12.0  # above the floor, cm (the robot's top)
+    plate: float = 16.0  # the white plate it is printed on (its quiet zone), cm
+
+
+@dataclass(frozen=True)
+class Board:
+    """The ChArUco board for the lens: squares x squares of ``square`` cm."""
+
+    squares: tuple[int, int] = (7, 5)
+    square: float = 3.8  # fills an A4 sheet
+    marker: float = 2.8
+
+    def charuco(self) -> cv2.aruco.CharucoBoard:
+        return cv2.aruco.CharucoBoard(self.squares, self.square, self.marker,
+                                      dictionary(BOARD_DICTIONARY))
+
+
+def default_floor(size: float = 12.0, margin: float = 10.0) -> tuple[FloorMarker, ...]:
+    """Ten markers just outside the area's long sides, every 75 cm from y = 0 to 300: the robot
+    never covers them and a camera that sees the area sees them."""
+    xs = (AREA_X[0] - margin - size / 2, AREA_X[1] + margin + size / 2)
+    ys = np.linspace(AREA_Y[0], AREA_Y[1], 5)
+    return tuple(FloorMarker(1 + i * 2 + j, float(x), float(y), size)
+                 for i, y in enumerate(ys) for j, x in enumerate(xs))
+
+
+@dataclass(frozen=True)
+class Layout:
+    floor: tuple[FloorMarker, ...] = field(default_factory=default_floor)
+    robot: RobotMarker = RobotMarker()
+    dictionary: str = DICTIONARY
+
+    def floor_by_id(self) -> dict[int, FloorMarker]:
+        return {m.id: m for m in self.floor}
+
+    def to_json(self) -> dict:
+        return {"dictionary": self.dictionary,
+                "floor": [vars(m) for m in self.floor], "robot": vars(self.robot)}
+
+    @staticmethod
+    def from_json(doc: dict) -> Layout:
+        try:
+            return Layout(tuple(FloorMarker(int(m["id"]), float(m["x"]), float(m["y"]),
+                                            float(m["size"])) for m in doc["floor"]),
+                          RobotMarker(**{k: float(v) if k != "id" else int(v)
+                                         for k, v in doc["robot"].items()}),
+                          str(doc["dictionary"]))
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(f"marker layout: missing or bad field ({e})") from None
+
+
+def square_corners(size: float) -> np.ndarray:
+    """A marker's corners in its own frame (x right, y up), OpenCV's order: top-left,
+    top-right, bottom-right, bottom-left."""
+    s = size / 2
+    return np.array([[-s, s], [s, s], [s, -s], [-s, -s]], dtype=np.float64)
+
+
+def floor_corners(m: FloorMarker) -> np.ndarray:
+    """The floor marker's four corners on the floor (4, 2), cm."""
+    return square_corners(m.size) + [m.x, m.y]
+
+
+def heading_rotation(h_deg: float) -> np.ndarray:
+    """Maps a marker-frame vector (x right, y forward) to the floor for compass heading h."""
+    h = np.radians(h_deg)
+    return np.array([[np.cos(h), np.sin(h)], [-np.sin(h), np.cos(h)]])
+
+
+DEFAULT_LAYOUT = Layout()
+DEFAULT_BOARD = Board()

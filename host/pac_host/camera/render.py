@@ -1,0 +1,239 @@
+"""A virtual overhead camera: frames of the floor markers, the robot's marker plate at a pose
+and the lens board, as a real camera would show them (perspective, lens distortion, blur,
+sensor noise, uneven light). The tests' ground truth and the demo's camera; it shares the
+camera model of :mod:`pac_host.camera.geometry` with the detection, nothing else.
+
+Each pixel is drawn by casting its ray (through the distorted lens) onto the textured planes,
+at ``supersample`` x ``supersample`` rays per pixel averaged (anti-aliasing); the robot's plate
+is a plane at the marker's height above the floor, so parallax comes out as it would.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from pac_host.camera.geometry import Camera
+from pac_host.camera.layout import (
+    AREA_X,
+    AREA_Y,
+    BLOCK_CM,
+    DEFAULT_LAYOUT,
+    Board,
+    Layout,
+    dictionary,
+    heading_rotation,
+)
+
+FLOOR_PPC = 8.0  # texture pixels per cm of the floor
+FLOOR_MARGIN = 45.0  # floor drawn beyond the area, cm
+PAPER = 245  # grey levels: printed white, printed black, the floor, tape lines
+INK = 25
+FLOOR = 150
+TAPE = 110
+
+
+@dataclass(frozen=True)
+class Imaging:
+    """What degrades the ideal image: Gaussian blur (pixels), sensor noise (grey levels),
+    uneven light (the darkest corner's loss, 0..1)."""
+
+    blur: float = 0.8
+    noise: float = 3.0
+    light: float = 0.35
+    supersample: int = 2
+
+
+def standard_camera(size: tuple[int, int] = (640, 480), height: float = 250.0,
+                    dist: Sequence[float] = (-0.12, 0.03, 0.0005, -0.0005, 0.0)) -> Camera:
+    """The project's reference set-up: a camera ``height`` cm above the floor, 50 cm before
+    the area's middle, tilted to look at it (so the far end is foreshortened), the area's long
+    side along the image's width; the focal length just fits the area and its floor markers."""
+    mid = np.array([(AREA_X[0] + AREA_X[1]) / 2, (AREA_Y[0] + AREA_Y[1]) / 2, 0.0])
+    center = mid + [0.0, -50.0, height]
+    probe = Camera.looking_at(size, 1.0, center, mid, (0, 1, 0))
+    corners = np.array([[x, y, 0.0] for x in (AREA_X[0] - 35, AREA_X[1] + 35)
+                        for y in (AREA_Y[0] - 15, AREA_Y[1] + 15)])
+    cam = (corners - probe.center) @ probe.R.T
+    xy = np.abs(cam[:, :2] / cam[:, 2:])
+    focal = min((size[0] / 2 - 4) / xy[:, 0].max(), (size[1] / 2 - 4) / xy[:, 1].max())
+    return Camera.looking_at(size, focal, center, mid, (0, 1, 0), dist)
+
+
+def _dense_rays(camera: Camera, s: int, step: int = 4) -> np.ndarray:
+    """The floor-frame ray of every supersampled pixel (h s, w s, 3): exact on a grid every
+    ``step`` rays, interpolated between (the lens's distortion is smooth)."""
+    w, h = camera.size
+    gu = np.arange(0, w * s + step, step)
+    gv = np.arange(0, h * s + step, step)
+    u, v = np.meshgrid((gu + 0.5) / s - 0.5, (gv + 0.5) / s - 0.5)
+    coarse = camera.rays(np.column_stack([u.ravel(), v.ravel()])).reshape(
+        len(gv), len(gu), 3).astype(np.float32)
+    mu, mv = np.meshgrid(np.arange(w * s, dtype=np.float32) / step,
+                         np.arange(h * s, dtype=np.float32) / step)
+    return cv2.remap(coarse, mu, mv, cv2.INTER_LINEAR)
+
+
+def _marker_image(dict_name: str, marker_id: int, px: int) -> np.ndarray:
+    img = cv2.aruco.generateImageMarker(dictionary(dict_name), marker_id, px, borderBits=1)
+    return np.where(img > 127, PAPER, INK).astype(np.uint8)
+
+
+def _cells(dict_name: str) -> int:
+    return dictionary(dict_name).markerSize + 2
+
+
+class Renderer:
+    """Frames of one camera looking at one layout; the floor's rays are computed once."""
+
+    def __init__(self, camera: Camera, layout: Layout = DEFAULT_LAYOUT,
+                 imaging: Imaging = Imaging()) -> None:
+        self.camera, self.layout, self.imaging = camera, layout, imaging
+        s = imaging.supersample
+        w, h = camera.size
+        self._rays = _dense_rays(camera, s)
+        self._floor_tex, origin = self._floor_texture()
+        mx, my = self._plane_maps(self._rays, origin, (1, 0, 0), (0, -1, 0), FLOOR_PPC)
+        self._floor = cv2.remap(self._floor_tex, mx, my, cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=FLOOR
+                                ).astype(np.float32)
+        r = layout.robot
+        cells = _cells(layout.dictionary)
+        mpx = cells * max(1, round(r.size * 16 / cells))
+        self._plate_ppc = mpx / r.size
+        ppx = round(r.plate * self._plate_ppc)
+        plate = np.full((ppx, ppx), PAPER, np.uint8)
+        o = (ppx - mpx) // 2
+        plate[o:o + mpx, o:o + mpx] = _marker_image(layout.dictionary, r.id, mpx)
+        self._plate_tex = plate
+        yy, xx = np.mgrid[0:h, 0:w]
+        rr = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / ((w / 2) ** 2 + (h / 2) ** 2)
+        self._light = (1 - imaging.light * (0.5 * rr + 0.5 * (xx / w))).astype(np.float32)
+
+    def _floor_texture(self) -> tuple[np.ndarray, tuple[float, float, float]]:
+        """The floor as a picture: grey, tape on the block lines, the markers on white paper."""
+        x0, x1 = AREA_X[0] - FLOOR_MARGIN, AREA_X[1] + FLOOR_MARGIN
+        y0, y1 = AREA_Y[0] - FLOOR_MARGIN, AREA_Y[1] + FLOOR_MARGIN
+        k = FLOOR_PPC
+        tex = np.full((round((y1 - y0) * k), round((x1 - x0) * k)), FLOOR, np.uint8)
+
+        def px(x: float, y: float) -> tuple[int, int]:
+            return round((x - x0) * k), round((y1 - y) * k)
+
+        for bx in np.arange(AREA_X[0], AREA_X[1] + 1, BLOCK_CM):
+            cv2.line(tex, px(bx, AREA_Y[0]), px(bx, AREA_Y[1]), TAPE, round(1.5 * k))
+        for by in np.arange(AREA_Y[0], AREA_Y[1] + 1, BLOCK_CM):
+            cv2.line(tex, px(AREA_X[0], by), px(AREA_X[1], by), TAPE, round(1.5 * k))
+        cells = _cells(self.layout.dictionary)
+        for m in self.layout.floor:
+            side = cells * max(1, round(m.size * k / cells))
+            paper = round((m.size + 4) * k)
+            c0, r0 = px(m.x - (m.size + 4) / 2, m.y + (m.size + 4) / 2)
+            tex[r0:r0 + paper, c0:c0 + paper] = PAPER
+            c0, r0 = px(m.x - m.size / 2, m.y + m.size / 2)
+            tex[r0:r0 + side, c0:c0 + side] = _marker_image(self.layout.dictionary, m.id, side)
+        return tex, (x0, y1, 0.0)
+
+    def _plane_maps(self, rays: np.ndarray, origin, ex, ey, ppc: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """remap() maps from rays onto the plane ``origin + a ex + b ey`` (a texture with
+        ``ppc`` pixels per cm, a to the right, b down); rays that miss it map outside."""
+        o, ex, ey = (np.asarray(v, dtype=np.float64) for v in (origin, ex, ey))
+        n = np.cross(ex, ey)
+        c = self.camera.center
+        denom = rays @ n.astype(np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.float32(n @ (o - c)) / denom
+        hit = (c - o).astype(np.float32) + t[..., None] * rays
+        a = hit @ ex.astype(np.float32)
+        b = hit @ ey.astype(np.float32)
+        bad = ~(t > 0)
+        mx = np.where(bad, -1e6, a * ppc - 0.5).astype(np.float32)
+        my = np.where(bad, -1e6, b * ppc - 0.5).astype(np.float32)
+        return mx, my
+
+    def _paste(self, img: np.ndarray, tex: np.ndarray, origin, ex, ey, ppc: float,
+               box: tuple[int, int, int, int] | None = None) -> None:
+        """Draw the textured plane over ``img`` (supersampled, float) within ``box``."""
+        y0, y1, x0, x1 = box if box is not None else (0, img.shape[0], 0, img.shape[1])
+        if y1 <= y0 or x1 <= x0:
+            return
+        mx, my = self._plane_maps(self._rays[y0:y1, x0:x1], origin, ex, ey, ppc)
+        kw = {"borderMode": cv2.BORDER_CONSTANT, "borderValue": 0}
+        col = cv2.remap(tex.astype(np.float32), mx, my, cv2.INTER_LINEAR, **kw)
+        alpha = cv2.remap(np.ones(tex.shape, np.float32), mx, my, cv2.INTER_LINEAR, **kw)
+        sub = img[y0:y1, x0:x1]
+        sub *= 1 - alpha
+        sub += col
+
+    def _finish(self, ideal: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
+        im = self.imaging
+        w, h = self.camera.size
+        img = cv2.resize(ideal, (w, h), interpolation=cv2.INTER_AREA) * self._light
+        if im.blur > 0:
+            img = cv2.GaussianBlur(img, (0, 0), im.blur)
+        if rng is not None and im.noise > 0:
+            img += rng.normal(0.0, im.noise, img.shape).astype(np.float32)
+        return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+    def frame(self, pose: Sequence[float] | None, rng: np.random.Generator | None = None
+              ) -> np.ndarray:
+        """A grey frame with the robot's marker plate centred at ``pose`` (x, y, compass h)
+        at its height; None draws the floor alone. ``rng`` draws the sensor noise."""
+        img = self._floor.copy()
+        if pose is not None:
+            r = self.layout.robot
+            x, y, h = (float(v) for v in pose)
+            rot = heading_rotation(h)
+            ex = np.append(rot[:, 0], 0.0)
+            ey = -np.append(rot[:, 1], 0.0)
+            half = r.plate / 2
+            origin = np.array([x, y, r.height]) - half * (ex + ey)
+            corners = np.array([origin + a * ex + b * ey for a in (0, r.plate)
+                                for b in (0, r.plate)])
+            px = self.camera.project(corners) * self.imaging.supersample
+            hs, ws = self._rays.shape[:2]
+            lo = np.floor(px.min(axis=0)).astype(int) - 4
+            hi = np.ceil(px.max(axis=0)).astype(int) + 4
+            box = (max(lo[1], 0), min(hi[1], hs), max(lo[0], 0), min(hi[0], ws))
+            self._paste(img, self._plate_tex, origin, ex, ey, self._plate_ppc, box)
+        return self._finish(img, rng)
+
+    def board_frame(self, board: Board, rvec: Sequence[float], tvec: Sequence[float],
+                    rng: np.random.Generator | None = None) -> np.ndarray:
+        """A frame of the lens board held in front of the camera: its top-left corner at
+        camera-frame point ``tvec`` (cm), turned by the Rodrigues vector ``rvec``."""
+        R = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64))[0]
+        cam = self.camera
+        to_floor = cam.R.T
+        origin = to_floor @ np.asarray(tvec, dtype=np.float64) + cam.center
+        ex, ey = to_floor @ R[:, 0], to_floor @ R[:, 1]
+        cols, rows = board.squares
+        ppc = 20.0
+        tex = board.charuco().generateImage((round(cols * board.square * ppc),
+                                             round(rows * board.square * ppc)), marginSize=0)
+        tex = np.where(tex > 127, PAPER, INK).astype(np.uint8)
+        img = self._floor.copy()
+        self._paste(img, tex, origin, ex, ey, ppc)
+        return self._finish(img, rng)
+
+
+def board_poses(camera: Camera, board: Board, n: int, rng: np.random.Generator
+                ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``n`` poses (rvec, tvec) of the lens board held 35..65 cm before the camera, tilted up
+    to 35 degrees and spread over the field of view (as a person would wave it)."""
+    w, h = camera.size
+    K = camera.K
+    bw, bh = board.squares[0] * board.square, board.squares[1] * board.square
+    out = []
+    for _ in range(n):
+        z = rng.uniform(35, 65)
+        u, v = rng.uniform(0.2 * w, 0.8 * w), rng.uniform(0.2 * h, 0.8 * h)
+        centre = np.array([(u - K[0, 2]) / K[0, 0] * z, (v - K[1, 2]) / K[1, 1] * z, z])
+        rvec = rng.uniform(-1, 1, 3) * np.radians([35, 35, 20])
+        R = cv2.Rodrigues(rvec)[0]
+        out.append((rvec, centre - R @ [bw / 2, bh / 2, 0.0]))
+    return out

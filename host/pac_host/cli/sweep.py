@@ -1,0 +1,65 @@
+"""`pac-host sweep`: many experiments over a grid of settings, locally or on a Dask cluster."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+
+from pac_host.cli.cluster_options import scheduler_options
+from pac_host.executors import Executor, InProcess, dask_executor, make_executor
+from pac_host.sweep import load_sweep, run_sweep, varying_keys
+from pac_host.sweep.plots import sweep_plots
+
+
+def _local(jobs: int) -> Executor:
+    """One job runs in this process; more start a Dask LocalCluster of that many workers."""
+    return InProcess() if jobs <= 1 else dask_executor(None, jobs)
+
+
+@click.command("sweep")
+@click.argument("sweep_file", metavar="SWEEP.toml",
+                type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Directory for results.csv, results.json, the plots and cells/ID/.")
+@click.option("--jobs", default=1, show_default=True, type=click.IntRange(1, 256),
+              help="Workers of a local Dask cluster (1: run in this process); results do not "
+                   "depend on it.")
+@scheduler_options
+@click.option("--resume", is_flag=True, help="Continue an interrupted sweep in --out: finished "
+              "cells are skipped.")
+def sweep_cmd(sweep_file, out_dir, jobs, scheduler, connect_timeout, resume) -> None:
+    """Run `experiment` for every cell of a grid of settings.
+
+    SWEEP.toml has [settings] (every cell's), [grid] (a list of values per setting: every
+    combination is a cell) and [[cells]] (explicit cells). A setting is any of experiment's:
+    methods, model_fitness, actual, effects, budget, generations, seeds, the GA settings
+    (cga_population, pal.cga.bit_mutation_rate, ...).
+
+    Writes OUT/cells/ID/ (each cell's experiment, as soon as it finishes), OUT/results.csv and
+    OUT/results.json (one row per cell, seed and method) and OUT/final_coverage.png,
+    OUT/mean_coverage.png.
+
+    Example: pac-host sweep sweep.toml --out out/sweep --jobs 2
+    """
+    cells = load_sweep(sweep_file)
+    keys = varying_keys(cells)
+    t0 = time.perf_counter()
+
+    def progress(event, cell, done, total, seconds):
+        what = "already done" if event == "skipped" else f"done in {seconds:.1f} s"
+        click.echo(f"cell {done}/{total} {cell.id} ({cell.label(keys)}): {what}")
+
+    with make_executor(jobs, scheduler, connect_timeout, local=_local) as engine:
+        doc = run_sweep(cells, out_dir, engine, resume, progress)
+    minutes = (time.perf_counter() - t0) / 60
+    plots = sweep_plots(cells, doc["rows"], keys, out_dir)
+    click.echo(f"{len(cells)} cells, {len(doc['rows'])} rows in {minutes * 60:.1f} s "
+               f"({len(cells) / max(minutes, 1e-9):.2f} cells per minute)")
+    click.echo(f"results: {out_dir / 'results.csv'}, {out_dir / 'results.json'}")
+    click.echo("plots: " + ", ".join(str(p) for p in plots))
+
+
+def register(main: click.Group) -> None:
+    main.add_command(sweep_cmd)

@@ -1,0 +1,171 @@
+"""A sweep cell's settings, mapped onto :class:`~pac_host.experiment.ExperimentConfig`.
+
+The mapping is generic: every field of the config, nested ones included, is a setting, named by
+its dotted path (``pal.cga.bit_mutation_rate``) or, where the name is unambiguous, by the field's
+own name (``budget`` is ``pal.budget``: the shallowest field of that name wins; ``population``
+exists twice at the same depth, so it needs its path). A field added to the config is sweepable
+without a change here; values are checked against the field's type. Besides the config, a cell
+names its tables: ``actual`` and ``model`` (``measured``, ``shifted`` or a table file) and
+``effects`` (a list of ``name:param=value,...`` added to the actual robot).
+
+>>> names = setting_names()
+>>> names["budget"], names["model_fitness"], names["pal.cga.elite"]
+(('pal', 'budget'), ('pal', 'model_fitness'), ('pal', 'cga', 'elite'))
+>>> "elite" in names
+False
+"""
+
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from collections.abc import Iterator
+from dataclasses import fields, is_dataclass, replace
+from functools import cache
+from typing import Any
+
+from pac_host.errors import InputError
+from pac_host.experiment import ExperimentConfig
+
+TABLE_SETTINGS = {"actual": "shifted", "model": "measured", "effects": ()}
+
+# Fields every PAL run of the experiment sets itself: sweeping them would change nothing.
+SET_BY_THE_EXPERIMENT = {
+    ("pal", "method"): "methods",
+    ("pal", "generations"): "generations",
+    ("pal", "cga", "population"): "cga_population",
+    ("pal", "cga", "budget"): "budget",
+    ("pal", "model", "population"): "model_population",
+    ("pal", "model", "budget"): "budget",
+}
+
+Path_ = tuple[str, ...]
+
+
+def _leaves(cls: type, prefix: Path_ = ()) -> Iterator[tuple[Path_, Any]]:
+    hints = typing.get_type_hints(cls)
+    for f in fields(cls):
+        hint = hints[f.name]
+        if is_dataclass(hint):
+            yield from _leaves(hint, prefix + (f.name,))
+        else:
+            yield prefix + (f.name,), hint
+
+
+@cache
+def _field_types(cls: type = ExperimentConfig) -> dict[Path_, Any]:
+    return dict(_leaves(cls))
+
+
+@cache
+def setting_names(cls: type = ExperimentConfig) -> dict[str, Path_]:
+    """Every name a setting may go by: its dotted path, and its field name where that is the
+    shallowest of its name and unique at its depth."""
+    paths = [p for p in _field_types(cls) if p not in SET_BY_THE_EXPERIMENT]
+    names = {".".join(p): p for p in paths}
+    by_name: dict[str, list[Path_]] = {}
+    for p in paths:
+        by_name.setdefault(p[-1], []).append(p)
+    for name, ps in by_name.items():
+        depth = min(len(p) for p in ps)
+        top = [p for p in ps if len(p) == depth]
+        if len(top) == 1:
+            names.setdefault(name, top[0])
+    return names
+
+
+def canonical_name(key: str) -> str:
+    """The short name of a setting (``pal.budget`` -> ``budget``); an unknown one is an error."""
+    key = key.strip().replace("-", "_")
+    if key in TABLE_SETTINGS:
+        return key
+    names = setting_names()
+    if key not in names:
+        known = sorted(set(names) | set(TABLE_SETTINGS))
+        path = tuple(key.split("."))
+        if path in SET_BY_THE_EXPERIMENT:
+            hint = f" (the experiment sets it; sweep {SET_BY_THE_EXPERIMENT[path]!r})"
+        else:
+            close = difflib.get_close_matches(key, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise InputError(f"unknown setting {key!r}{hint}")
+    path = names[key]
+    return min((n for n, p in names.items() if p == path), key=len)
+
+
+def _describe(hint: Any) -> str:
+    return getattr(hint, "__name__", None) or str(hint).replace("typing.", "")
+
+
+def coerce(value: Any, hint: Any, key: str) -> Any:
+    """``value`` (as TOML gives it) as the type ``hint`` wants; JSON-friendly lists for tuples."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    bad = InputError(f"setting {key!r} takes {_describe(hint)}, got {value!r}")
+    if origin in (types.UnionType, typing.Union):
+        for a in args:
+            if a is type(None):
+                continue
+            try:
+                return coerce(value, a, key)
+            except InputError:
+                pass
+        raise bad
+    if origin is tuple:
+        if isinstance(value, str) and args and args[0] is str:
+            value = [v.strip() for v in value.split(",") if v.strip()]
+        if not isinstance(value, list | tuple):
+            raise bad
+        if len(args) == 2 and args[1] is Ellipsis:
+            return [coerce(v, args[0], key) for v in value]
+        if args and len(args) != len(value):
+            raise bad
+        return [coerce(v, a, key) for v, a in zip(value, args or [Any] * len(value),
+                                                     strict=True)]
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise bad
+        return value
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise bad
+        return value
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise bad
+        return float(value)
+    if hint is str:
+        if not isinstance(value, str):
+            raise bad
+        return value
+    return value
+
+
+def check_value(key: str, value: Any) -> Any:
+    """A setting's value, checked and in its JSON form (``key`` is canonical)."""
+    if key in ("actual", "model"):
+        return coerce(value, str, key)
+    if key == "effects":
+        return coerce(value, tuple[str, ...], key) if not isinstance(value, str) else [value]
+    return coerce(value, _field_types()[setting_names()[key]], key)
+
+
+def _set(obj: Any, path: Path_, value: Any) -> Any:
+    if len(path) == 1:
+        return replace(obj, **{path[0]: value})
+    return replace(obj, **{path[0]: _set(getattr(obj, path[0]), path[1:], value)})
+
+
+def experiment_config(settings: dict[str, Any]) -> ExperimentConfig:
+    """The config a cell's (canonical, checked) settings make over the defaults, checked as the
+    CLI's is."""
+    cfg = ExperimentConfig()
+    for key, value in settings.items():
+        if key in TABLE_SETTINGS:
+            continue
+        path = setting_names()[key]
+        if isinstance(value, list):
+            value = tuple(value)
+        cfg = _set(cfg, path, value)
+    cfg.check()
+    return cfg

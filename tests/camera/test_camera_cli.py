@@ -1,0 +1,109 @@
+"""`pac-host camera` end to end on rendered frames, its bad input (one line, exit 2), and the
+camera in the loop: `evolve` against pac-sim with poses through rendered frames."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+from click.testing import CliRunner
+
+from pac_host.cli.main import main
+
+
+def _invoke(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def _one_error_line(res, code, text):
+    assert res.exit_code == code, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.startswith("pac-host: error:")]
+    assert len(lines) == 1 and text in lines[0], res.output
+    assert "Traceback" not in res.output
+
+
+def test_render_calibrate_check_on_files(tmp_path):
+    d = tmp_path / "frames"
+    res = _invoke("camera", "render", "--out", d, "--pose", "60,200,-30", "--board", "8",
+                  "--floor", "2")
+    assert res.exit_code == 0, res.output
+    calib = tmp_path / "calib.json"
+    res = _invoke("camera", "calibrate", "--floor", d / "floor", "--lens", d / "board",
+                  "--out", calib)
+    assert res.exit_code == 0, res.output
+    assert "reprojection error" in res.output and "cm RMS" in res.output
+    doc = json.loads(calib.read_text())
+    assert doc["format"] == "pac-camera-calibration/1" and doc["lens"]["images"] >= 5
+    png = tmp_path / "check.png"
+    res = _invoke("camera", "check", "--source", d / "robot", "--calib", calib, "--out", png)
+    assert res.exit_code == 0, res.output
+    x, y, h = (float(v) for v in res.output.split("robot at (")[1].replace(") cm, heading", ",")
+               .split(" deg")[0].split(","))
+    assert abs(x - 60) < 0.5 and abs(y - 200) < 0.5 and abs(h + 30) < 1.5
+    assert cv2.imread(str(png)).shape == (480, 640, 3)
+
+    res = _invoke("camera", "sheets", "--out", tmp_path / "sheets")
+    assert res.exit_code == 0 and "12 A4 pages" in res.output, res.output
+    pdf = (tmp_path / "sheets" / "markers.pdf").read_bytes()
+    assert pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages") == 12
+
+    # bad input: too few floor markers, a file of the wrong kind, a camera that is not there
+    few = tmp_path / "few"
+    few.mkdir()
+    img = cv2.imread(str(d / "floor" / "000.png"), cv2.IMREAD_GRAYSCALE)
+    img[:, 200:] = 150  # only the near end's markers stay in view
+    cv2.imwrite(str(few / "0.png"), img)
+    _one_error_line(_invoke("camera", "calibrate", "--floor", few, "--out", tmp_path / "c2.json"),
+                    2, "of the 10 floor markers seen")
+    assert not (tmp_path / "c2.json").exists()
+    table = tmp_path / "table.json"
+    assert _invoke("table", "export", table).exit_code == 0
+    _one_error_line(_invoke("camera", "check", "--source", d / "robot", "--calib", table,
+                            "--out", png), 2, "not a camera calibration")
+    _one_error_line(_invoke("measure", "--ids", "12", "--repeats", "2", "--out",
+                            tmp_path / "m.json", "--observer", f"camera:{tmp_path}/none.mp4,"
+                            f"calib={calib}"), 2, "no such camera index, folder or video file")
+    _one_error_line(_invoke("measure", "--ids", "12", "--repeats", "2", "--out",
+                            tmp_path / "m.json", "--observer", f"camera:{d / 'robot'}"),
+                    2, "give calib=FILE")
+
+
+SMALL = ["--generations", "40", "--interval", "40", "--initial-generations", "20",
+         "--cga-population", "32", "--model-population", "16", "--model-generations", "10",
+         "--seed", "0"]
+
+
+def test_camera_in_the_loop_gets_the_tracker_fed_results(tmp_path):
+    """The same PAL run, once observed by pac-sim's tracker (noise-free: the truth), once by
+    the camera observer through rendered frames: the same figures, the same learning, poses
+    within the camera's noise."""
+    runs = {}
+    for name, extra in (("tracker", ["--sim-noise", "0,0"]),
+                        ("camera", ["--observer", "camera:sim,frames=2"])):
+        out = tmp_path / name
+        res = _invoke("evolve", "--out", out, "--budget", "12", *SMALL, *extra)
+        assert res.exit_code == 0, res.output
+        runs[name] = ([json.loads(x) for x in (out / "log.jsonl").read_text().splitlines()],
+                      [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()])
+    (tlog, truns), (clog, cruns) = runs["tracker"], runs["camera"]
+    assert len(clog) == len(tlog) == 2
+    for t, c in zip(tlog, clog, strict=True):
+        assert c["tests"] == t["tests"] and c["observed"] == t["observed"]
+        assert c["operational"] == t["operational"]
+    err = np.array([np.array(c["poses"]) - np.array(t["poses"])
+                    for t, c in zip(truns, cruns, strict=True)]).reshape(-1, 3)
+    pos = np.hypot(err[:, 0], err[:, 1])
+    assert len(pos) == 6 * 12 and np.median(pos) < 0.5 and np.median(np.abs(err[:, 2])) < 1
+
+
+def test_a_robot_leaving_the_view_is_a_lost_observation_mid_run(tmp_path):
+    out = tmp_path / "lost"
+    res = _invoke("evolve", "--out", out, "--budget", "30", *SMALL,
+                  "--observer", "camera:sim,frames=1")
+    _one_error_line(res, 1, "lost observation of gait cycle")
+    obs = [json.loads(x) for x in (out / "observations.jsonl").read_text().splitlines()]
+    lost = [o for o in obs if o["type"] == "lost"]
+    assert len(lost) == 1
+    seen = [o for o in obs if o["type"] == "pose" and o["run_id"] == lost[0]["run_id"]]
+    assert [o["cycle"] for o in seen] == list(range(1, lost[0]["cycle"]))
