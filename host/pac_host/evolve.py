@@ -35,6 +35,7 @@ from pac_host.errors import InputError, PacError
 from pac_host.experiment import ExperimentConfig, initial_population
 from pac_host.files import write_atomic
 from pac_host.model.table import GaitTable, resolve_table, save_table
+from pac_host.pal import model_generations_for
 from pac_host.robot.connect import Connection
 from pac_host.robot.linked import AppendLog, LinkedRobot
 
@@ -50,7 +51,7 @@ class EvolveConfig:
     model_fitness: str = "coverage"
     generations: int = 1000
     interval: int = 40
-    model_generations: int = 40
+    model_generations: int | None = None  # None: 40 for the paper's GA, 0 on a fitted table
     cga_population: int = 128
     model_population: int = 64
     budget: int = 200
@@ -69,7 +70,7 @@ class EvolveConfig:
             raise InputError(f"--model-fitness must be coverage or steps, "
                              f"got {self.model_fitness!r}")
         for name in ("generations", "initial_generations", "model_generations"):
-            if getattr(self, name) < 0:
+            if (getattr(self, name) or 0) < 0:
                 raise InputError(f"--{name.replace('_', '-')} must be >= 0")
         for name in ("interval", "cga_population", "model_population", "budget"):
             if getattr(self, name) < 1:
@@ -82,7 +83,8 @@ class EvolveConfig:
         return pal.PALConfig(
             method=self.method, model_fitness=self.model_fitness,
             generations=self.generations, interval=self.interval,
-            model_generations=self.model_generations, cga_population=self.cga_population,
+            model_generations=model_generations_for(self.correction, self.model_generations),
+            cga_population=self.cga_population,
             model_population=self.model_population, budget=self.budget,
             correction=self.correction, structure=self.structure, tests=self.tests,
             operational=self.operational)

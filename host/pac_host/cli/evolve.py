@@ -40,8 +40,9 @@ from pac_host.robot.observers import ManualObserver
               metavar="measured|shifted|FILE", help="The model the CGA starts on.")
 @click.option("--cga-population", default=128, show_default=True, type=int)
 @click.option("--model-population", default=64, show_default=True, type=int)
-@click.option("--model-generations", default=40, show_default=True, type=int,
-              help="Model GA generations per punctuation.")
+@click.option("--model-generations", default=None, type=int,
+              help="Model GA generations per punctuation [default: 40 with --correction ga, "
+                   "0 with fit: the fitted table alone]")
 @click.option("--initial-generations", default=200, show_default=True, type=int,
               help="CGA generations on the model before the first test.")
 @learning_options

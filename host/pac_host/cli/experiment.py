@@ -19,7 +19,7 @@ from pac_host.coverage import DEFAULT_BUDGET, check_budget
 from pac_host.executors import make_executor
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
-from pac_host.pal import PALConfig
+from pac_host.pal import PALConfig, model_generations_for
 from pac_host.plots import experiment_plots
 
 
@@ -60,8 +60,9 @@ from pac_host.plots import experiment_plots
               help="The best coverage fitness known on the actual robot (verified with "
                    "`pac-host simulate`); punctuations to the target count against the higher "
                    "of it and the experiment's own optimum.")
-@click.option("--model-generations", default=40, show_default=True, type=int,
-              help="Model GA generations per punctuation.")
+@click.option("--model-generations", default=None, type=int,
+              help="Model GA generations per punctuation [default: 40 with --correction ga, "
+                   "0 with fit: the fitted table alone]")
 @learning_options
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 @scheduler_options
@@ -89,7 +90,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         optimum_runs=optimum_runs, optimum_generations=optimum_generations,
         best_known=best_known,
         pal=replace(PALConfig(), budget=check_budget(budget), model_fitness=model_fitness,
-                    model_generations=model_generations, correction=correction,
+                    model_generations=model_generations_for(correction, model_generations),
+                    correction=correction,
                     structure=structure, tests=tests, operational=operational),
     )
     actual = load_with_effects(actual_spec, effect_specs)
