@@ -47,7 +47,7 @@ test: $(STAMP) firmware
 # the serial protocol against the emulated Stamp on a pseudo-terminal.
 demo: $(STAMP)
 	rm -rf $(OUT)/demo-experiment $(OUT)/demo-evolve
-	$(BIN)/pac-host experiment --seeds 4 --generations 400 --methods full,partial,oracle --jobs 2 --out $(OUT)/demo-experiment
+	$(BIN)/pac-host experiment --seeds 4 --generations 400 --methods full,partial,oracle --jobs 2 --correction ga --tests paper --operational best --out $(OUT)/demo-experiment
 	$(BIN)/pac-host evolve --out $(OUT)/demo-evolve --generations 240 --budget 200 --seed 1
 	@echo "demo done: plots in $(OUT)/demo-experiment/*.png and $(OUT)/demo-evolve/*.png"
 
