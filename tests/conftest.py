@@ -1,4 +1,9 @@
-"""Shared fixtures: paths to the shared reference vectors and the repository root."""
+"""Shared fixtures: the project's copy of the reference vectors, and where an upstream copy may be.
+
+The repository carries every reference file its tests use (``tests/data``), so a clone with nothing
+beside it tests fully. When the design's reference folder is present (``$PAC_SHARED``, or
+``../shared`` beside the checkout), one test checks that the copy still equals it.
+"""
 
 from __future__ import annotations
 
@@ -8,17 +13,18 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def shared_dir() -> Path:
-    """The shared reference data: $PAC_SHARED, or ../shared beside the checkout."""
-    env = os.environ.get("PAC_SHARED")
-    return Path(env) if env else ROOT.parent / "shared"
+DATA = ROOT / "tests" / "data"
 
 
 @pytest.fixture
-def shared() -> Path:
-    d = shared_dir()
-    if not (d / "vectors").is_dir():
-        pytest.fail(f"shared reference data not found at {d} (set PAC_SHARED)")
-    return d
+def upstream_vectors() -> Path:
+    """The upstream reference vectors: $PAC_SHARED/vectors, or ../shared/vectors beside the checkout
+    (may not exist)."""
+    env = os.environ.get("PAC_SHARED")
+    return (Path(env) if env else ROOT.parent / "shared") / "vectors"
+
+
+@pytest.fixture
+def data_dir() -> Path:
+    """The reference data the repository carries."""
+    return DATA

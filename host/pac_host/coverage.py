@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pac_host.errors import InputError
+from pac_host.limits import SIM_BUDGET
 from pac_host.model.effects import (
     Effect,
     effective_rows,
@@ -119,9 +120,8 @@ def format_turn_cycle(genes: np.ndarray) -> str:
 
 
 def check_budget(budget: int) -> int:
-    if not isinstance(budget, int | np.integer) or budget < 0:
-        raise InputError(f"budget must be a non-negative number of gait cycles, got {budget}")
-    return int(budget)
+    """``budget`` as an int if it is a gait-cycle count the robot can run (0..65535)."""
+    return SIM_BUDGET.check(budget, "budget")
 
 
 # Entries of a chunk's step table ahead of the genes': the leading one of the heading scan,

@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_host import pal
+from pac_host import limits, pal
 from pac_host.coverage import START_POSE, detect_blocks, format_turn_cycle
-from pac_host.errors import InputError, PacError
+from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError
 from pac_host.experiment import ExperimentConfig, initial_population
 from pac_host.files import write_atomic
 from pac_host.model.table import GaitTable, resolve_table, save_table
@@ -69,14 +69,15 @@ class EvolveConfig:
         if self.model_fitness not in ("coverage", "steps"):
             raise InputError(f"--model-fitness must be coverage or steps, "
                              f"got {self.model_fitness!r}")
-        for name in ("generations", "initial_generations", "model_generations"):
-            if (getattr(self, name) or 0) < 0:
-                raise InputError(f"--{name.replace('_', '-')} must be >= 0")
-        for name in ("interval", "cga_population", "model_population", "budget"):
-            if getattr(self, name) < 1:
-                raise InputError(f"--{name.replace('_', '-')} must be >= 1")
-        if self.cga_population < 4 or self.model_population < 4:
-            raise InputError("populations must hold at least 4")
+        for name, bound in (("generations", limits.GENERATIONS),
+                            ("initial_generations", limits.GENERATIONS),
+                            ("model_generations", limits.MODEL_GENERATIONS),
+                            ("interval", limits.INTERVAL),
+                            ("cga_population", limits.CGA_POPULATION),
+                            ("model_population", limits.MODEL_POPULATION),
+                            ("budget", limits.BUDGET)):
+            if getattr(self, name) is not None:  # model_generations None: by the correction
+                bound.check(getattr(self, name), f"--{name.replace('_', '-')}")
         self.pal().check()
 
     def pal(self) -> pal.PALConfig:
@@ -227,7 +228,7 @@ def evolve(
         timer = _TimedRobot(robot)
         try:
             state, rec = pal.punctuate(state, timer, rng, pcfg)
-        except PacError as e:
+        except TOOLKIT_ERRORS as e:
             raise RunInterrupted(
                 f"run {robot.current_run}: {e}. Everything observed is in {d.observations}; "
                 f"`pac-host evolve --resume {d.root}` continues from the last complete "

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_host import cga, model_ga, pal, stats
-from pac_host.coverage import check_budget, fitness_of_score, format_turn_cycle, simulate
+from pac_host import cga, limits, model_ga, pal, stats
+from pac_host.coverage import fitness_of_score, format_turn_cycle, simulate
 from pac_host.errors import InputError
 from pac_host.executors import Executor, local_executor
 from pac_host.files import write_atomic
@@ -55,12 +55,12 @@ class ExperimentConfig:
     pal: pal.PALConfig = field(default_factory=pal.PALConfig)
 
     def check(self) -> None:
-        if self.seeds < 1:
-            raise InputError(f"--seeds must be at least 1, got {self.seeds}")
-        if self.generations < 0:
-            raise InputError(f"--generations must be >= 0, got {self.generations}")
-        if self.optimum_runs < 1:
-            raise InputError(f"--optimum-runs must be at least 1, got {self.optimum_runs}")
+        limits.SEEDS.check(self.seeds, "--seeds")
+        limits.GENERATIONS.check(self.generations, "--generations")
+        limits.GENERATIONS.check(self.initial_generations, "--initial-generations")
+        limits.RUNS.check(self.optimum_runs, "--optimum-runs")
+        limits.GENERATIONS.check(self.optimum_generations, "--optimum-generations")
+        limits.BUDGET.check(self.pal.budget, "--budget")
         if self.best_known is not None and self.best_known < 1:
             raise InputError(f"--best-known must be at least 1, got {self.best_known}")
         self.pal.check()
@@ -71,7 +71,6 @@ class ExperimentConfig:
         if self.pal.model_fitness not in model_ga.FITNESSES:
             raise InputError(f"--model-fitness takes {', '.join(model_ga.FITNESSES)}, got "
                              f"{self.pal.model_fitness!r}")
-        check_budget(self.pal.budget)
 
 
 def _rng(base: int, seed: int, stage: int, extra: int = 0) -> np.random.Generator:

@@ -1,12 +1,24 @@
-"""Typed errors of the wire protocol; all are ``pac_host.errors.PacError``, so the CLI maps them."""
+"""Typed errors of the wire protocol package.
+
+The package stands alone: every error it raises on purpose is a :class:`PacProtocolError`, which
+the command-line tools above it map to exit codes in one place.
+Failures of the exchange are :class:`ProtocolError`; bad arguments from the caller (a turn cycle
+the Stamp cannot hold, a port that cannot be opened) are :class:`UsageError`.
+"""
 
 from __future__ import annotations
 
-from pac_host.errors import InputError, PacError
+
+class PacProtocolError(Exception):
+    """Base of every error the protocol package raises on purpose."""
 
 
-class ProtocolError(PacError):
-    """Base of every protocol-level failure (exit 1)."""
+class UsageError(PacProtocolError, ValueError):
+    """The caller asked for something the protocol cannot do: a bad argument, a bad port."""
+
+
+class ProtocolError(PacProtocolError):
+    """Base of every failure of the exchange with the Stamp."""
 
 
 class FrameError(ProtocolError):
@@ -49,8 +61,8 @@ class BadPayload(MessageError):
     code = "bad_payload"
 
 
-class PortError(InputError):
-    """The serial port does not exist, cannot be opened, or is not a serial device (exit 2)."""
+class PortError(UsageError):
+    """The serial port does not exist, cannot be opened, or is not a serial device."""
 
 
 class NoAnswer(ProtocolError):

@@ -13,9 +13,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from pac_host.errors import InputError
 from pac_protocol.decoder import FrameDecoder
-from pac_protocol.errors import MessageError, Nacked, NoAnswer, StampReset, VersionMismatch
+from pac_protocol.errors import (
+    MessageError,
+    Nacked,
+    NoAnswer,
+    StampReset,
+    UsageError,
+    VersionMismatch,
+)
 from pac_protocol.frame import Frame
 from pac_protocol.messages import (
     MAX_GAIT,
@@ -337,11 +343,11 @@ class StampLink:
 
 
 def check_genes(genes: list[tuple[int, int]]) -> None:
-    """Raise InputError unless ``genes`` is a turn cycle the Stamp accepts."""
+    """Raise :class:`UsageError` unless ``genes`` is a turn cycle the Stamp accepts."""
     if not 1 <= len(genes) <= MAX_GENES:
-        raise InputError(f"a turn cycle has 1..{MAX_GENES} genes, got {len(genes)}")
+        raise UsageError(f"a turn cycle has 1..{MAX_GENES} genes, got {len(genes)}")
     for i, (g, r) in enumerate(genes):
         if not (0 <= g <= MAX_GAIT and 0 <= r <= MAX_REPS):
-            raise InputError(
+            raise UsageError(
                 f"gene {i}: gait id {g} must be 0..{MAX_GAIT}, repetitions {r} 0..{MAX_REPS}"
             )

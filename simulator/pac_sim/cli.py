@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 
 from pac_host.cli.options import effect_option, load_with_effects, table_option
-from pac_host.errors import InputError, PacError
+from pac_host.errors import TOOLKIT_ERRORS, InputError, exit_code
 from pac_sim.line import WINDOW_FLOOR_S, Faults
 from pac_sim.runner import SimConfig, SimStamp
 
@@ -200,9 +200,9 @@ def main(link_path: str | None, **opts: object) -> None:
     """Emulate the ServoBot's BASIC Stamp II on a pseudo-terminal, with a simulated world."""
     try:
         sim = SimStamp(build_config(**opts))
-    except PacError as e:
+    except TOOLKIT_ERRORS as e:
         click.echo(f"pac-sim: error: {e}", err=True)
-        sys.exit(e.exit_code)
+        sys.exit(exit_code(e))
     if link_path:
         link = Path(link_path)
         if link.is_symlink():
@@ -233,7 +233,7 @@ def main(link_path: str | None, **opts: object) -> None:
             os.unlink(link_path)
     if sim.error is not None:
         click.echo(f"pac-sim: error: {sim.error}", err=True)
-        sys.exit(sim.error.exit_code)
+        sys.exit(exit_code(sim.error))
     inexact = getattr(sim.stamp, "inexact", 0)
     if inexact:
         click.echo(f"pac-sim: warning: {inexact} gait cycles' thrust matched no table row exactly "

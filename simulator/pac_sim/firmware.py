@@ -24,7 +24,7 @@ import threading
 from collections import deque
 from pathlib import Path
 
-from pac_host.errors import InputError, PacError
+from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError
 from pac_host.stamp_image import TURN_CYCLE_ADDR, TURN_CYCLE_SIZE, tokenize
 from pac_protocol.decoder import FrameDecoder
 from pac_protocol.messages import Cmd
@@ -146,7 +146,7 @@ class FirmwareEmulator:
         self.downloads: list[StampDownload] = []  # every download session, in order
         self.walked: deque[WalkedCycle] = deque(maxlen=WALKED_KEPT)
         self.inexact = 0  # gait cycles whose thrust matched no table row exactly
-        self.error: PacError | None = None
+        self.error: Exception | None = None  # one of TOOLKIT_ERRORS
         self._counter = ThrustCounter(self.servo)
         self._decoder = FrameDecoder()
         self._reset_pending = threading.Event()
@@ -179,7 +179,7 @@ class FirmwareEmulator:
                 continue
             except Shutdown:
                 return
-            except PacError as e:
+            except TOOLKIT_ERRORS as e:
                 self.error = e
                 return
             if state == ENDED:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pac_host.errors import InputError, PacError
+from pac_host.errors import TOOLKIT_ERRORS, InputError
 from pac_host.model import Effect, GaitTable, resolve_table
 from pac_protocol.messages import PROTOCOL_VERSION
 from pac_sim.eeprom import Eeprom
@@ -73,7 +73,7 @@ class SimStamp:
         )
         try:
             self.stamp = self._backend(config)
-        except PacError:
+        except TOOLKIT_ERRORS:
             self.line.close()
             raise
         self.tracker: TrackerServer | None = None
@@ -116,7 +116,7 @@ class SimStamp:
         )
 
     @property
-    def error(self) -> PacError | None:
+    def error(self) -> Exception | None:
         """Why the emulated Stamp stopped serving (a firmware that stopped listening), if so."""
         return self.stamp.error
 

@@ -124,14 +124,14 @@ def test_interrupted_experiment_resumes_to_the_same_summary(finished, tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["simulate", "--turn-cycle", "12:14,40:2"], "gait cycle id 40 outside 0..31"),
     (["simulate", "--turn-cycle", "12:99"], "repetitions 99 outside 0..63"),
-    (["simulate", "--turn-cycle", "12:9", "--budget", "-3"], "non-negative"),
+    (["simulate", "--turn-cycle", "12:9", "--budget", "-3"], "--budget must be 0..65535"),
     (["simulate", "--turn-cycle", "12:9", "--effect", "gremlin:x=1"], "unknown effect 'gremlin'"),
     (["simulate", "--turn-cycle", "12:9", "--table", "nope.json"], "nope.json: cannot read"),
     (["table", "show", "--table", "shiftd"], "shiftd: cannot read"),
-    (["experiment", "--seeds", "0", "--out", "x"], "--seeds must be at least 1"),
+    (["experiment", "--seeds", "0", "--out", "x"], "--seeds must be 1..10000, got 0"),
     (["experiment", "--methods", "full,half", "--out", "x"], "--methods takes full"),
     (["experiment", "--methods", "oracle,oracle", "--out", "x"], "(each once)"),
-    (["experiment", "--optimum-runs", "0", "--out", "x"], "--optimum-runs must be at least 1"),
+    (["experiment", "--optimum-runs", "0", "--out", "x"], "--optimum-runs must be 1..1000, got 0"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, message):
     res = CliRunner().invoke(main, args)

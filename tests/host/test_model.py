@@ -1,4 +1,4 @@
-"""The robot model: tables, the pose update against the shared vectors, and the effects."""
+"""The robot model: tables, the pose update against the reference vectors, and the effects."""
 
 from __future__ import annotations
 
@@ -25,12 +25,12 @@ from pac_host.model import (
 from pac_host.model.effects import effective_rows
 
 
-def _cases(shared):
-    return json.loads((shared / "vectors" / "kinematics.json").read_text())["cases"]
+def _cases(data_dir):
+    return json.loads((data_dir / "kinematics.json").read_text())["cases"]
 
 
-def test_kinematics_vectors_reproduced_to_1e6(shared):
-    cases = _cases(shared)
+def test_kinematics_vectors_reproduced_to_1e6(data_dir):
+    cases = _cases(data_dir)
     assert len(cases) >= 7
     for case in cases:
         table = resolve_table(case["table"])
@@ -38,6 +38,15 @@ def test_kinematics_vectors_reproduced_to_1e6(shared):
         np.testing.assert_allclose(poses[0], case["start_pose"], atol=1e-12)
         np.testing.assert_allclose(poses[1:], case["poses"], atol=1e-6, rtol=0,
                                    err_msg=case["name"])
+
+
+def test_kinematics_copy_equals_upstream(data_dir, upstream_vectors):
+    """The repository's copy of the kinematics vectors is the design's reference file, unchanged."""
+    upstream = upstream_vectors / "kinematics.json"
+    if not upstream.is_file():
+        pytest.skip(f"no upstream reference vectors at {upstream} (a plain clone)")
+    copy = json.loads((data_dir / "kinematics.json").read_text())
+    assert copy == json.loads(upstream.read_text())
 
 
 def test_pose_update_formula_by_hand():

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 
+from pac_host.errors import exit_code
 from pac_protocol.errors import Nacked, NoAnswer, PortError, StampReset, VersionMismatch
 from pac_protocol.link import StampLink
 from pac_protocol.messages import Cmd, Done, Err, Load, Reason, State
@@ -86,7 +87,7 @@ def test_silent_device_is_no_answer_naming_the_port(make_sim):
         link.hello()
     msg = str(e.value)
     assert sim.path in msg and "no READY" in msg and "received nothing" in msg
-    assert e.value.exit_code == 1
+    assert exit_code(e.value) == 1
 
 
 def test_protocol_version_mismatch_names_both_versions(make_sim):
@@ -104,7 +105,7 @@ def test_protocol_version_mismatch_names_both_versions(make_sim):
 def test_bad_ports(path, words):
     with pytest.raises(PortError) as e:
         open_port(path)
-    assert words in str(e.value) and path in str(e.value) and e.value.exit_code == 2
+    assert words in str(e.value) and path in str(e.value) and exit_code(e.value) == 2
 
 
 def test_not_a_device_file(tmp_path):

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import click
 
+from pac_host import limits
 from pac_host.cli.link_options import ask, confirm, emulator_options, given, link_options
-from pac_host.cli.options import learning_options
+from pac_host.cli.options import Bounded, learning_options
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, save_config
 from pac_host.model.table import BUILTIN
@@ -22,9 +23,9 @@ from pac_host.robot.observers import ManualObserver
               help="Directory for the run's files (required unless --resume).")
 @click.option("--resume", "resume_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Continue the run in this directory from its last complete punctuation.")
-@click.option("--generations", default=1000, show_default=True, type=int,
+@click.option("--generations", default=1000, show_default=True, type=Bounded(limits.GENERATIONS),
               help="CGA generations in all.")
-@click.option("--interval", default=40, show_default=True, type=int,
+@click.option("--interval", default=40, show_default=True, type=Bounded(limits.INTERVAL),
               help="CGA generations between punctuations (tests on the robot).")
 @click.option("--method", default="partial", show_default=True,
               type=click.Choice(["partial", "full"]), help="Model GA recombination.")
@@ -34,16 +35,19 @@ from pac_host.robot.observers import ManualObserver
                    "paths' one-step residuals (needs a tracker, not manual counts).")
 @click.option("--seed", default=0, show_default=True, type=int,
               help="Seeds the GAs and the emulator's per-run tracker noise.")
-@click.option("--budget", default=200, show_default=True, type=int,
+@click.option("--budget", default=200, show_default=True, type=Bounded(limits.BUDGET),
               help="Gait cycles per test run.")
 @click.option("--model", "model_spec", default="measured", show_default=True,
               metavar="measured|shifted|FILE", help="The model the CGA starts on.")
-@click.option("--cga-population", default=128, show_default=True, type=int)
-@click.option("--model-population", default=64, show_default=True, type=int)
-@click.option("--model-generations", default=None, type=int,
+@click.option("--cga-population", default=128, show_default=True,
+              type=Bounded(limits.CGA_POPULATION))
+@click.option("--model-population", default=64, show_default=True,
+              type=Bounded(limits.MODEL_POPULATION))
+@click.option("--model-generations", default=None, type=Bounded(limits.MODEL_GENERATIONS),
               help="Model GA generations per punctuation [default: 40 with --correction ga, "
                    "0 with fit: the fitted table alone]")
-@click.option("--initial-generations", default=200, show_default=True, type=int,
+@click.option("--initial-generations", default=200, show_default=True,
+              type=Bounded(limits.GENERATIONS),
               help="CGA generations on the model before the first test.")
 @learning_options
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,

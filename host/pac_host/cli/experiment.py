@@ -8,8 +8,10 @@ from pathlib import Path
 
 import click
 
+from pac_host import limits
 from pac_host.cli.cluster_options import scheduler_options
 from pac_host.cli.options import (
+    Bounded,
     effect_option,
     learning_options,
     load_with_effects,
@@ -24,9 +26,9 @@ from pac_host.plots import experiment_plots
 
 
 @click.command("experiment")
-@click.option("--seeds", default=5, show_default=True, type=int,
+@click.option("--seeds", default=5, show_default=True, type=Bounded(limits.SEEDS),
               help="Starting populations (the paper used 5).")
-@click.option("--generations", default=1000, show_default=True, type=int,
+@click.option("--generations", default=1000, show_default=True, type=Bounded(limits.GENERATIONS),
               help="CGA generations per run; a punctuation every 40.")
 @click.option("--methods", default="full,partial,oracle", show_default=True,
               help="Comma-separated: full, partial, and the control oracle (the CGA on the "
@@ -48,19 +50,21 @@ from pac_host.plots import experiment_plots
               type=click.Choice(["coverage", "steps"]),
               help="Model GA score: the paper's six coverage differences, or one-step "
                    "residuals of the observed paths (a project extension).")
-@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
+@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=Bounded(limits.BUDGET),
               help="Gait cycles per test run.")
-@click.option("--initial-generations", default=1000, show_default=True, type=int,
+@click.option("--initial-generations", default=1000, show_default=True,
+              type=Bounded(limits.GENERATIONS),
               help="Length of the CGA run on the model that seeds each population.")
-@click.option("--optimum-runs", default=8, show_default=True, type=int,
+@click.option("--optimum-runs", default=8, show_default=True, type=Bounded(limits.RUNS),
               help="Long CGA runs on the actual table that establish the optimum (raised to "
                    "the best any run shows on the robot).")
-@click.option("--optimum-generations", default=3000, show_default=True, type=int)
+@click.option("--optimum-generations", default=3000, show_default=True,
+              type=Bounded(limits.GENERATIONS))
 @click.option("--best-known", type=int, default=None,
               help="The best coverage fitness known on the actual robot (verified with "
                    "`pac-host simulate`); punctuations to the target count against the higher "
                    "of it and the experiment's own optimum.")
-@click.option("--model-generations", default=None, type=int,
+@click.option("--model-generations", default=None, type=Bounded(limits.MODEL_GENERATIONS),
               help="Model GA generations per punctuation [default: 40 with --correction ga, "
                    "0 with fit: the fitted table alone]")
 @learning_options

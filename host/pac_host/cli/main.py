@@ -11,16 +11,20 @@ import sys
 import click
 
 from pac_host import __version__
-from pac_host.errors import PacError
+from pac_host.errors import TOOLKIT_ERRORS, exit_code
 
 
 class _Group(click.Group):
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
-        except PacError as e:
+        except TOOLKIT_ERRORS as e:
             click.echo(f"pac-host: error: {e}", err=True)
-            ctx.exit(e.exit_code)
+            ctx.exit(exit_code(e))
+        except click.UsageError as e:  # a bad option of a command: one line too, exit 2
+            where = e.ctx.command_path if e.ctx is not None else ctx.command_path
+            click.echo(f"pac-host: error: {e.format_message()} (see '{where} --help')", err=True)
+            ctx.exit(2)
         except KeyboardInterrupt:
             click.echo("pac-host: interrupted (work already written is kept)", err=True)
             ctx.exit(130)

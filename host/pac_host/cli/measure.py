@@ -7,7 +7,9 @@ from pathlib import Path
 
 import click
 
+from pac_host import limits
 from pac_host.cli.link_options import ask, confirm, emulator_options, link_options
+from pac_host.cli.options import Bounded
 from pac_host.measure import (
     MEASURE_START,
     MeasureConfig,
@@ -34,7 +36,7 @@ def _pose(text: str) -> tuple[float, float, float]:
 @click.command("measure")
 @link_options
 @click.option("--ids", default="0-31", show_default=True, help="Gait cycle ids, e.g. 0-3,12.")
-@click.option("--repeats", default=5, show_default=True, type=int,
+@click.option("--repeats", default=5, show_default=True, type=Bounded(limits.REPEATS),
               help="Placements per id (each a STEP of --cycles gait cycles).")
 @click.option("--cycles", default=1, show_default=True, type=int,
               help="Gait cycles per placement.")

@@ -6,7 +6,26 @@ import sys
 
 import click
 
+from pac_host.limits import Bound
 from pac_host.model import load_with_effects  # noqa: F401  (re-exported for the commands)
+
+
+class Bounded(click.ParamType):
+    """An integer option held to a :class:`~pac_host.limits.Bound`: outside it, one line naming
+    the option, the range and why, and exit 2. The help shows the range as the metavar."""
+
+    name = "integer"
+
+    def __init__(self, bound: Bound) -> None:
+        self.bound = bound
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        return self.bound.describe()
+
+    def convert(self, value, param, ctx) -> int:
+        v = value if isinstance(value, int) else click.INT.convert(value, param, ctx)
+        name = param.opts[0] if param is not None and param.opts else "value"
+        return self.bound.check(v, name)
 
 
 def table_option(default: str = "measured", help_text: str | None = None):

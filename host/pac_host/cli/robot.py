@@ -13,6 +13,7 @@ from collections.abc import Iterator
 import click
 
 from pac_host.errors import InputError
+from pac_host.limits import MAX_GAIT_CYCLES
 from pac_host.robot.api import RunReport, StampRobot
 from pac_protocol.link import READY_TIMEOUT_S, check_genes
 from pac_protocol.messages import MAX_GAIT, Cycle, State
@@ -42,7 +43,7 @@ def session(port: str, timeout: float) -> Iterator[StampRobot]:
         yield robot
 
 
-def _positive(value: int, name: str, hi: int = 65535) -> int:
+def _positive(value: int, name: str, hi: int = MAX_GAIT_CYCLES) -> int:
     if not 1 <= value <= hi:
         raise InputError(f"{name} must be 1..{hi}, got {value}")
     return value

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from pac_host.cli.options import effect_option, load_with_effects, table_option
+from pac_host import limits
+from pac_host.cli.options import Bounded, effect_option, load_with_effects, table_option
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, check_budget, parse_turn_cycle, simulate
 
 
@@ -17,7 +18,8 @@ from pac_host.coverage import DEFAULT_BUDGET, START_POSE, check_budget, parse_tu
 @click.option("--turn-cycle", "turn_cycle", required=True, metavar="ID:REPS,...",
               help='Looped genes of gait cycle id (0..31) and repetitions (0..63), '
                    'e.g. "12:14,3:10".')
-@click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=int,
+@click.option("--budget", default=DEFAULT_BUDGET, show_default=True,
+              type=Bounded(limits.SIM_BUDGET),
               help="Gait cycles to run.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
