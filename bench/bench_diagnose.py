@@ -20,7 +20,12 @@ diagnosis without telling it the effect. Categories:
 - null_step_noise / single_step_noise: the robot also varies by itself from step to step
   (0.3 cm on F and T, 0.6 deg on dH per gait cycle), which the noise floor must absorb;
 - weak_short: singles at a quarter of the moderate magnitude on 12 runs of 30 gait cycles with
-  high noise: where the method runs out of data (no target; shows the failure modes).
+  high noise: where the method runs out of data (no target; shows the failure modes);
+- outside: a gap no effect of the library can cause (``pac_host.diagnose.synth.OUTSIDE``:
+  intermittent stalls, a periodic heading wobble, a payload change between runs, a floor
+  patch of higher friction, a heading-dependent pull, a warm-up after power-on), each at three
+  magnitude levels; scores the verdict (partly_unexplained, never explained), the kind named
+  and the held-out shrink of the proposed term.
 
 Shrink is 1 - (held-out rollout end error after) / (before); the excess shrink divides by the
 part above the oracle's error (the true model's own error, tracker noise alone).
@@ -36,15 +41,16 @@ import numpy as np
 
 from pac_host.diagnose import diagnose
 from pac_host.diagnose.residuals import batch_of, end_errors
-from pac_host.diagnose.synth import MODERATE, blind_case, moderate_effect
-from pac_host.model.effects import EFFECT_SPECS, Effect
+from pac_host.diagnose.synth import MODERATE, OUTSIDE, blind_case, moderate_effect
+from pac_host.model.effects import BUILT_IN, EFFECT_SPECS, Effect
 from pac_host.model.table import GaitTable, measured_table
 
-NAMES = list(EFFECT_SPECS)
+NAMES = [n for n in EFFECT_SPECS if n in BUILT_IN]
 NOISE = {"moderate": (0.5, 1.0), "high": (1.5, 3.0)}
 SEED = 2024
 KINDS = ("single", "pair", "null", "withheld", "single_high_noise", "table_error", "weak_short",
-         "null_step_noise", "single_step_noise")
+         "null_step_noise", "single_step_noise", "outside")
+LEVELS = 3  # magnitude levels of each outside kind
 STEP_NOISE = (0.3, 0.6)  # the robot's own step variability: cm on F and T, deg on dH
 WEAK = 0.25  # weak_short cases: a quarter of a moderate magnitude ...
 SHORT = (12, 30)  # ... on 12 runs of 30 gait cycles, with high tracker noise
@@ -78,13 +84,18 @@ def _weaker(effect: Effect, f: float) -> Effect:
 
 
 def _case(kind: str, index: int, effects, noise, library=None, perturb=False,
-          model_rows=None, size=(40, 60), step_noise=(0.0, 0.0)) -> dict:
+          model_rows=None, size=(40, 60), step_noise=(0.0, 0.0), outside=None) -> dict:
     rng = np.random.default_rng([SEED, KINDS.index(kind), index])
+    world, truth = (None, None)
+    if outside is not None:  # (name, level): a gap outside the library
+        world, truth = OUTSIDE[outside[0]][1](rng, outside[1])
     rows, fit, hold = blind_case(rng, effects, n_runs=size[0], n_cycles=size[1],
                                  pos_noise_cm=noise[0], heading_noise_deg=noise[1],
-                                 perturb_table=perturb, step_noise=step_noise)
+                                 perturb_table=perturb, step_noise=step_noise, perturb=world)
+    order = sorted(r.run_id for r in fit + hold)  # the runs in the order they were made
     t0 = time.perf_counter()
-    d = diagnose(GaitTable(rows if model_rows is None else model_rows), fit, hold, rng, library)
+    d = diagnose(GaitTable(rows if model_rows is None else model_rows), fit, hold, rng, library,
+                 order=order)
     wall = time.perf_counter() - t0
     # the oracle: the true model's own held-out rollout error (tracker noise alone)
     oracle = float(end_errors(rows, batch_of(hold), effects).mean())
@@ -101,7 +112,20 @@ def _case(kind: str, index: int, effects, noise, library=None, perturb=False,
             "param_error": [_param_error(t, next((e for e in d.selected if e.name == t.name),
                                                  None)) for t in effects],
             "alike": d.selection.alike, "informative": d.informative, "notes": d.notes,
-            "wall_s": round(wall, 3)}
+            "wall_s": round(wall, 3), **_outside_figures(d, outside, truth)}
+
+
+def _outside_figures(d, outside, truth) -> dict:
+    u = d.unexplained or {}
+    prop = u.get("proposal") or {}
+    hold = prop.get("holdout", {})
+    return {"outside": list(outside) if outside else None, "truth": truth,
+            "true_kind": OUTSIDE[outside[0]][0] if outside else None,
+            "kind_named": u.get("kind"), "description": u.get("description"),
+            "flags": u.get("flags", []),
+            "proposal_family": prop.get("family"),
+            "proposal_shrink": hold.get("shrink"),
+            "proposal_shrink_over_library": hold.get("shrink_over_library")}
 
 
 def _rng_effects(rng, names):
@@ -117,6 +141,7 @@ def run(quick: bool = False) -> dict:
     n_table = 0 if quick else 10
     n_weak = 0 if quick else 5
     n_step = 1 if quick else 3
+    n_outside = 1 if quick else 3  # per kind and level
     pick = np.random.default_rng(SEED)
     cases = []
     for name in NAMES:
@@ -157,6 +182,11 @@ def run(quick: bool = False) -> dict:
             eff = [moderate_effect(name, np.random.default_rng([SEED, 8, NAMES.index(name), i]))]
             cases.append(_case("single_step_noise", len(cases), eff, NOISE["moderate"],
                                perturb=i % 2 == 1, step_noise=STEP_NOISE))
+    for name in OUTSIDE:
+        for level in range(LEVELS) if not quick else (1,):
+            for i in range(n_outside):
+                cases.append(_case("outside", len(cases), [], NOISE["moderate"],
+                                   perturb=i % 2 == 1, outside=(name, level)))
     return summarize(cases, quick)
 
 
@@ -277,12 +307,62 @@ def summarize(cases: list[dict], quick: bool) -> dict:
         "single_uninformative": [{"true": c["true"], "selected": c["selected_effects"],
                                   "notes": c["notes"]} for c in singles if not c["informative"]],
     }
+    out = by["outside"]
+    if out:
+        flagged = _frac(c["verdict"] == "partly_unexplained" for c in out)
+        wrong = _frac(c["verdict"] == "explained" for c in out)
+        kind_ok = _frac(c["kind_named"] == c["true_kind"] for c in out)
+        shrinks = [c["proposal_shrink"] if c["proposal_shrink"] is not None else 0.0
+                   for c in out]
+        over = [c["proposal_shrink_over_library"] if c["proposal_shrink_over_library"]
+                is not None else 0.0 for c in out]
+        res["outside"] = {
+            "what": "gaps no library effect causes, 3 magnitude levels each",
+            "partly_unexplained": flagged, "explained_with_wrong_effect": wrong,
+            "kind_named": kind_ok,
+            "proposal_median_shrink": round(float(np.median(shrinks)), 4),
+            "proposal_median_shrink_over_library": round(float(np.median(over)), 4),
+            "proposal_made": _frac(c["proposal_family"] is not None for c in out),
+            "per_kind": {name: {
+                "kind": OUTSIDE[name][0],
+                "partly_unexplained": _frac(c["verdict"] == "partly_unexplained" for c in cs),
+                "kind_named": _frac(c["kind_named"] == c["true_kind"] for c in cs),
+                "median_proposal_shrink": round(float(np.median(
+                    [c["proposal_shrink"] or 0.0 for c in cs])), 4),
+                "by_level": [{"level": lv, "kinds_named": [c["kind_named"] for c in cs
+                                                            if c["outside"][1] == lv]}
+                             for lv in range(LEVELS)]}
+                for name in OUTSIDE
+                if (cs := [c for c in out if c["outside"][0] == name])},
+            "misses": [{"outside": c["outside"], "truth": c["truth"], "verdict": c["verdict"],
+                        "selected": c["selected_effects"], "kind_named": c["kind_named"],
+                        "description": c["description"], "flags": c["flags"]}
+                       for c in out if c["kind_named"] != c["true_kind"]
+                       or c["verdict"] != "partly_unexplained"],
+            "examples": [{"outside": c["outside"], "truth": c["truth"],
+                          "description": c["description"], "proposal": c["proposal_family"],
+                          "shrink": c["proposal_shrink"]} for c in out[::LEVELS]],
+        }
     res["targets"] = {
         "single_top1": {"value": top1, "target": ">= 0.95", "met": top1 >= 0.95},
         "null_false_positive": {"value": fp, "target": "<= 0.05", "met": fp <= 0.05},
         "single_median_shrink": {"value": shrink_med, "target": ">= 0.80",
                                  "met": shrink_med >= 0.8},
     }
+    if out:
+        o = res["outside"]
+        res["targets"].update({
+            "outside_partly_unexplained": {"value": o["partly_unexplained"], "target": ">= 0.95",
+                                           "met": o["partly_unexplained"] >= 0.95},
+            "outside_explained_wrong": {"value": o["explained_with_wrong_effect"],
+                                        "target": "<= 0.02",
+                                        "met": o["explained_with_wrong_effect"] <= 0.02},
+            "outside_kind_named": {"value": o["kind_named"], "target": ">= 0.80",
+                                   "met": o["kind_named"] >= 0.8},
+            "outside_proposal_median_shrink": {"value": o["proposal_median_shrink"],
+                                               "target": ">= 0.5",
+                                               "met": o["proposal_median_shrink"] >= 0.5},
+        })
     return res
 
 

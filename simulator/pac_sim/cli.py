@@ -15,7 +15,12 @@ from pathlib import Path
 
 import click
 
-from pac_host.cli.options import effect_option, load_with_effects, table_option
+from pac_host.cli.options import (
+    effect_option,
+    effects_module_option,
+    load_with_effects,
+    table_option,
+)
 from pac_host.errors import TOOLKIT_ERRORS, InputError, exit_code
 from pac_sim.line import WINDOW_FLOOR_S, Faults
 from pac_sim.runner import SimConfig, SimStamp
@@ -101,6 +106,7 @@ def _report_downloads(stamp: object, seen: int) -> int:
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @table_option("shifted", "The robot's true gait table: measured, shifted or a table file.")
 @effect_option()
+@effects_module_option()
 @click.option(
     "--start",
     default="45,30,90",

@@ -43,7 +43,8 @@ class World:
         self.pose = np.asarray(start, dtype=np.float64).copy()
         self.noise = noise
         rng = rng if rng is not None else np.random.default_rng(0)
-        self._cycle_rng, self._snap_rng = rng.spawn(2)
+        # the first two streams are the tracker's; the third is a random effect's (a stall ...)
+        self._cycle_rng, self._snap_rng, self._effect_rng = rng.spawn(3)
         self.seq = 0
         self.power_on = 0
         self.history: list[PoseSample] = []
@@ -59,7 +60,8 @@ class World:
         """Execute one gait cycle. ``n0``: cycles since power-on before it; ``prev_gait``: the
         gait just before it in the same run (None at a run's start)."""
         body, drift = step_moves(
-            self.table.rows, np.array([gait]), self.effects, n0=n0, prev_gait=prev_gait
+            self.table.rows, np.array([gait]), self.effects, n0=n0, prev_gait=prev_gait,
+            rng=self._effect_rng,
         )
         with self._lock:
             self.pose = integrate(self.pose, body, drift)[-1]
@@ -88,7 +90,8 @@ class World:
             self.pose = np.asarray(pose, dtype=np.float64).copy()
             if noise_seed is not None:
                 seq = np.random.SeedSequence(noise_seed)
-                self._cycle_rng, self._snap_rng = (np.random.default_rng(s) for s in seq.spawn(2))
+                self._cycle_rng, self._snap_rng, self._effect_rng = (
+                    np.random.default_rng(s) for s in seq.spawn(3))
             return self._observe(self._snap_rng)
 
     def snapshot(self) -> PoseSample:

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from pac_host.cli.options import effects_module_option
 from pac_host.diagnose import diagnose, read_runs, split_runs
 from pac_host.diagnose.report import summary, to_json, write_json, write_plots
 from pac_host.errors import InputError
@@ -26,7 +27,9 @@ from pac_host.model import resolve_table, save_table
 @click.option("--seed", default=0, show_default=True, type=int,
               help="Seed of the split and the bootstrap.")
 @click.option("--library", default=None, metavar="NAME,...",
-              help="Try only these effects (default: all of the library).")
+              help="Try only these effects (default: all of the library, with the effects "
+                   "of --effects-module).")
+@effects_module_option()
 @click.option("--json", "json_path", type=click.Path(dir_okay=False),
               help="Write the pac-diagnosis/1 report here.")
 @click.option("--plots", "plots_dir", type=click.Path(file_okay=False),
@@ -56,7 +59,9 @@ def diagnose_cmd(model_spec, runs_path, holdout_fraction, holdout_path, seed, li
         lib = [s.strip() for s in library.split(",") if s.strip()]
         if not lib:
             raise InputError("--library: give at least one effect name")
-    d = diagnose(table, fit_runs, hold_runs, rng, lib)
+    # the order the runs were recorded in: --runs as given, then --holdout
+    order = [r.run_id for r in runs] + ([r.run_id for r in hold_runs] if holdout_path else [])
+    d = diagnose(table, fit_runs, hold_runs, rng, lib, order=order)
     meta = {"inputs": {"model": model_spec, "runs": Path(runs_path).name,
                        "holdout": Path(holdout_path).name if holdout_path else None,
                        "holdout_fraction": None if holdout_path else holdout_fraction,

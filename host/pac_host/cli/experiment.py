@@ -13,14 +13,17 @@ from pac_host.cli.cluster_options import scheduler_options
 from pac_host.cli.options import (
     Bounded,
     effect_option,
+    effects_module_option,
     learning_options,
     load_with_effects,
     progress_enabled,
 )
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
+from pac_host.errors import InputError
 from pac_host.executors import make_executor
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
+from pac_host.model.effects import BUILT_IN
 from pac_host.pal import PALConfig, model_generations_for
 from pac_host.plots import experiment_plots
 
@@ -44,6 +47,7 @@ from pac_host.plots import experiment_plots
               help="The simulated actual robot: a built-in table or a pac-gait-table/1 file "
                    "(its effects included).")
 @effect_option()
+@effects_module_option()
 @click.option("--model", "model_spec", default="measured", show_default=True,
               metavar="measured|shifted|FILE", help="The model the CGA starts on.")
 @click.option("--model-fitness", default="coverage", show_default=True,
@@ -100,6 +104,10 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
     )
     actual = load_with_effects(actual_spec, effect_specs)
     model = resolve_table(model_spec)
+    user = [e.name for e in (*actual.effects, *model.effects) if e.name not in BUILT_IN]
+    if scheduler and user:  # a cluster's workers import the project, not the user's file
+        raise InputError(f"effect {user[0]}: user-defined effects run with --jobs on this "
+                         "machine, not on a --scheduler cluster")
     bar = _Progress() if progress_enabled() else None
     with make_executor(jobs, scheduler, connect_timeout) as engine:
         summary = run_experiment(out_dir, cfg, model, actual, engine, resume, bar)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import click
 
-from pac_host.cli.options import load_with_effects
+from pac_host.cli.options import effects_module_option, load_with_effects
 from pac_host.errors import InputError
 from pac_host.robot.connect import EmulatorOptions
 
@@ -28,6 +28,7 @@ OPTIONS = [
                  metavar="measured|shifted|FILE", help="Emulator: the robot's true gait table."),
     click.option("--sim-effect", "sim_effects", multiple=True, metavar="NAME:P=V,...",
                  help="Emulator: an unmodelled effect of the true robot (repeatable)."),
+    effects_module_option(),
     click.option("--sim-noise", default="0.5,1", show_default=True, metavar="POS_CM,HEAD_DEG",
                  help="Emulator: standard deviation of the tracker's noise."),
     click.option("--sim-realtime", default=0.0, show_default=True, type=float,

@@ -6,8 +6,10 @@ import sys
 
 import click
 
+from pac_host.errors import InputError, exit_code
 from pac_host.limits import Bound
 from pac_host.model import load_with_effects  # noqa: F401  (re-exported for the commands)
+from pac_host.model.effects_module import load_effects_module
 
 
 class Bounded(click.ParamType):
@@ -46,6 +48,30 @@ def effect_option():
         multiple=True,
         metavar="NAME:P=V,...",
         help="Add an unmodelled effect, e.g. transition:alpha=0.3 (repeatable).",
+    )
+
+
+def _load_modules(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) -> None:
+    try:
+        for path in value:
+            load_effects_module(path)
+    except InputError as e:  # raised while parsing, before the command's own error handling
+        click.echo(f"{ctx.find_root().info_name}: error: {e}", err=True)
+        ctx.exit(exit_code(e))
+
+
+def effects_module_option():
+    """``--effects-module FILE`` (repeatable): user-defined effects, loaded before any other
+    option is used, so tables and ``--effect`` may name them."""
+    return click.option(
+        "--effects-module",
+        multiple=True,
+        metavar="FILE.py",
+        is_eager=True,
+        expose_value=False,
+        callback=_load_modules,
+        help="Python file defining effects with pac_host.model.effects.register_effect "
+             "(repeatable; see docs/diagnose.md).",
     )
 
 

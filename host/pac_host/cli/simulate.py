@@ -8,13 +8,20 @@ from pathlib import Path
 import click
 
 from pac_host import limits
-from pac_host.cli.options import Bounded, effect_option, load_with_effects, table_option
+from pac_host.cli.options import (
+    Bounded,
+    effect_option,
+    effects_module_option,
+    load_with_effects,
+    table_option,
+)
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, check_budget, parse_turn_cycle, simulate
 
 
 @click.command("simulate")
 @table_option()
 @effect_option()
+@effects_module_option()
 @click.option("--turn-cycle", "turn_cycle", required=True, metavar="ID:REPS,...",
               help='Looped genes of gait cycle id (0..31) and repetitions (0..63), '
                    'e.g. "12:14,3:10".')

@@ -6,7 +6,12 @@ from pathlib import Path
 
 import click
 
-from pac_host.cli.options import effect_option, load_with_effects, table_option
+from pac_host.cli.options import (
+    effect_option,
+    effects_module_option,
+    load_with_effects,
+    table_option,
+)
 from pac_host.model.table import COMPONENTS, save_table, side, strength
 
 
@@ -18,6 +23,7 @@ def table_group() -> None:
 @table_group.command("show")
 @table_option()
 @effect_option()
+@effects_module_option()
 def show(table_spec: str, effect_specs: tuple[str, ...]) -> None:
     """Print a table: per gait cycle id, its turn side and strength and (F, T, dH).
 
@@ -39,6 +45,7 @@ def show(table_spec: str, effect_specs: tuple[str, ...]) -> None:
 @click.argument("path", type=click.Path(dir_okay=False, path_type=Path))
 @table_option()
 @effect_option()
+@effects_module_option()
 def export(path: Path, table_spec: str, effect_specs: tuple[str, ...]) -> None:
     """Write a table as a pac-gait-table/1 JSON file to PATH."""
     table = load_with_effects(table_spec, effect_specs)

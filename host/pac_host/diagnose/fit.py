@@ -6,10 +6,11 @@ Predictions always come from :func:`pac_host.model.effects.step_moves`, the same
 the simulated world, so an effect is never re-implemented here; this module only searches its
 parameters.
 
-- Continuous parameters: projected Levenberg-Marquardt (Gauss-Newton with damping) on the
-  whitened residual vector, Jacobian by finite differences, parameters kept inside the bounds
-  of :data:`EFFECT_SPECS`. Most effects are linear in their parameter on the residuals, so it
-  converges in a few steps. ``floor_slope`` is searched as the world-frame drift vector
+- Continuous parameters: ``scipy.optimize.least_squares`` (bounded trust region, ``dogbox``,
+  which frees a parameter that starts on its bound where ``trf`` stalls) on the whitened
+  residual vector, Jacobian by finite differences, parameters kept inside the
+  bounds of :data:`EFFECT_SPECS`. Most effects are linear in their parameter on the residuals,
+  so it converges in a few steps. ``floor_slope`` is searched as the world-frame drift vector
   (u, v) = s (sin theta, cos theta), where it is linear, and reported as (s, theta).
 - Integer parameters (``turn_shift`` k): every k in its range is scored with the other
   parameters fixed, then the three best are refined jointly and the best kept.
@@ -26,13 +27,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import chi2
 
 from pac_host.diagnose.likelihood import Whitener
 from pac_host.diagnose.residuals import Batch, step_residuals
 from pac_host.model.effects import EFFECT_SPECS, Effect
 
-CHI2_1_95 = 3.841458820694124
-MAX_ITER = 30
+CHI2_1_95 = float(chi2.ppf(0.95, 1))
+FTOL = 1e-10  # relative change of the sum of squares (and of theta) that ends the search
+MAX_NFEV = 60
 TOP_INTEGERS = 3
 
 
@@ -109,7 +113,7 @@ class FitResult:
     n_obs: int
     df: int
     intervals: dict = field(default_factory=dict)  # effect name -> {param: [lo, hi]}
-    iterations: int = 0
+    iterations: int = 0  # evaluations of the residual in the search
 
     @property
     def sigma2(self) -> float:
@@ -144,50 +148,18 @@ class _Layout:
         return np.clip(out, self.lo, self.hi)
 
 
-def _jacobian(prob: Problem, lay: _Layout, theta: np.ndarray, ints: dict, f0: np.ndarray):
-    jac = np.empty((f0.size, lay.size))
-    for j in range(lay.size):
-        h = 1e-4 * (lay.hi[j] - lay.lo[j])
-        t = theta.copy()
-        if t[j] + h > lay.hi[j]:
-            h = -h
-        t[j] += h
-        jac[:, j] = (prob.whitened(lay.effects(t, ints)) - f0) / h
-    return jac
+def _solve(prob: Problem, lay: _Layout, theta: np.ndarray, ints: dict):
+    """Least squares over the continuous parameters within their bounds (SciPy's dogbox
+    trust region, Jacobian by finite differences). Returns (theta, ssr, jacobian, nfev)."""
+    def f(t: np.ndarray) -> np.ndarray:
+        return prob.whitened(lay.effects(t, ints))
 
-
-def _levenberg(prob: Problem, lay: _Layout, theta: np.ndarray, ints: dict):
-    f = prob.whitened(lay.effects(theta, ints))
-    ssr = float(f @ f)
-    lam = 1e-3
-    it = 0
-    for it in range(1, MAX_ITER + 1):  # noqa: B007
-        if lay.size == 0:
-            break
-        jac = _jacobian(prob, lay, theta, ints, f)
-        jtj = jac.T @ jac
-        g = jac.T @ f
-        improved = done = False
-        for _ in range(8):
-            a = jtj + lam * np.diag(np.diag(jtj) + 1e-12)
-            try:
-                step = -np.linalg.solve(a, g)
-            except np.linalg.LinAlgError:
-                lam *= 10
-                continue
-            t_new = np.clip(theta + step, lay.lo, lay.hi)
-            f_new = prob.whitened(lay.effects(t_new, ints))
-            s_new = float(f_new @ f_new)
-            if s_new < ssr:
-                done = ssr - s_new < 1e-9 * max(ssr, 1.0)
-                theta, f, ssr = t_new, f_new, s_new
-                lam = max(lam / 10, 1e-9)
-                improved = True
-                break
-            lam *= 10
-        if not improved or done:
-            break
-    return theta, ssr, it
+    if lay.size == 0:
+        r = f(theta)
+        return theta, float(r @ r), np.empty((r.size, 0)), 1
+    res = least_squares(f, theta, bounds=(lay.lo, lay.hi), method="dogbox", x_scale="jac",
+                        ftol=FTOL, xtol=FTOL, gtol=FTOL, max_nfev=MAX_NFEV)
+    return res.x, float(res.fun @ res.fun), res.jac, res.nfev
 
 
 def fit_effects(prob: Problem, names: Sequence[str], start: dict[str, Effect] | None = None
@@ -212,10 +184,10 @@ def fit_effects(prob: Problem, names: Sequence[str], start: dict[str, Effect] | 
         best = None
         for _, v in scored[:TOP_INTEGERS]:
             ints = {n: {p.name: v}}
-            theta, ssr, it = _levenberg(prob, lay, theta0, ints)
+            theta, ssr, jac, it = _solve(prob, lay, theta0, ints)
             if best is None or ssr < best[1]:
-                best = (theta, ssr, it, ints)
-        theta, ssr, it, ints = best
+                best = (theta, ssr, jac, it, ints)
+        theta, ssr, jac, it, ints = best
         # the profile over k with the other parameters at their optimum
         prof = {}
         for v in values:
@@ -223,21 +195,20 @@ def fit_effects(prob: Problem, names: Sequence[str], start: dict[str, Effect] | 
             prof[v] = float(f @ f)
     else:
         ints = {}
-        theta, ssr, it = _levenberg(prob, lay, theta0, ints)
+        theta, ssr, jac, it = _solve(prob, lay, theta0, ints)
         prof = None
     effects = lay.effects(theta, ints)
     df = sum(n_params(n) for n in names)
     res = FitResult(effects, ssr, prob.n_obs, df, iterations=it)
-    res.intervals = _intervals(prob, lay, theta, ints, res, prof)
+    res.intervals = _intervals(lay, theta, jac, ints, res, prof)
     return res
 
 
-def _intervals(prob, lay, theta, ints, res: FitResult, prof) -> dict:
+def _intervals(lay: _Layout, theta: np.ndarray, jac: np.ndarray, ints: dict, res: FitResult,
+               prof: dict | None) -> dict:
     out: dict = {}
     s2 = res.sigma2
     if lay.size:
-        f0 = prob.whitened(lay.effects(theta, ints))
-        jac = _jacobian(prob, lay, theta, ints, f0)
         try:
             cov = s2 * np.linalg.inv(jac.T @ jac)
         except np.linalg.LinAlgError:  # a parameter the data do not constrain

@@ -15,6 +15,9 @@
    apart is too weak.
    A selected effect that looks alike another is reported with it ("consistent with A or B")
    and the diagnosis is marked not informative: the runs cannot tell the two apart.
+7. Beyond the library: the residual's shape (:mod:`.shape`) on all runs; a shape noise cannot
+   make means ``partly_unexplained``, and then candidate terms outside the library are fitted
+   and judged on the held-out runs (:mod:`.propose`), naming the kind of what is missing.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from pac_host.diagnose import stats
 from pac_host.diagnose.fit import Problem
 from pac_host.diagnose.likelihood import whitener
 from pac_host.diagnose.noise import NoiseFloor, estimate_noise
+from pac_host.diagnose.propose import family_tests, propose
 from pac_host.diagnose.residuals import (
     Batch,
     batch_of,
@@ -45,6 +49,7 @@ from pac_host.diagnose.select import (
     holdout_figures,
     library_names,
 )
+from pac_host.diagnose.shape import flagged, shape_tests
 from pac_host.errors import InputError
 from pac_host.model.effects import EFFECT_SPECS, Effect
 from pac_host.model.table import GaitTable
@@ -61,6 +66,16 @@ REFERENCE = {
     "floor_slope": [Effect("floor_slope", {"s": 0.3, "theta": 0.0}),
                     Effect("floor_slope", {"s": 0.3, "theta": 90.0})],
 }
+
+
+def reference(name: str) -> list[Effect]:
+    """Moderate magnitudes of an effect: the built-in table, or a user effect's own."""
+    if name in REFERENCE:
+        return REFERENCE[name]
+    ref = EFFECT_SPECS[name].reference
+    return [Effect(name, ref)] if ref else []
+
+
 MIN_SIGNAL = 25.0  # whitened |signature|^2 (about a 5-sigma effect) for "visible"
 MIN_FIT_STEPS = 60
 
@@ -95,6 +110,7 @@ class Diagnosis:
     notes: list[str]
     example_paths: dict  # the held-out run with the largest gap: observed, model, corrected
     informative: bool  # False: runs too short or too few repeats for the verdict to carry weight
+    unexplained: dict | None = None  # beyond the library: shape tests, kind, proposed term
 
     @property
     def selected(self) -> list[Effect]:
@@ -137,8 +153,13 @@ def diagnose(
     hold_runs: Sequence[Run],
     rng: np.random.Generator,
     library: Sequence[str] | None = None,
+    order: Sequence[str] | None = None,
 ) -> Diagnosis:
-    """Diagnose the gap between ``table`` and the observed runs (see the module docstring)."""
+    """Diagnose the gap between ``table`` and the observed runs (see the module docstring).
+
+    ``order``: the run ids in the order they were recorded (default: the fitting runs, then
+    the held-out runs, each as given), for changes that happen between runs.
+    """
     ids = [r.run_id for r in fit_runs] + [r.run_id for r in hold_runs]
     if len(set(ids)) != len(ids):
         dup = next(i for i in ids if ids.count(i) > 1)
@@ -208,6 +229,7 @@ def diagnose(
               for n in untestable]
     worst = int(np.argmax(end0))
     n = int(hold_b.lengths[worst])
+    unexplained = beyond_library(table, fit_b, hold_b, all_b, noise, sel, order, fit_p, hold_p)
     paths = {"run_id": hold_b.run_ids[worst], "observed": hold_b.poses[worst, : n + 1],
              "model": rollout_poses(table.rows, hold_b, base)[worst, : n + 1],
              "corrected": rollout_poses(table.rows, hold_b,
@@ -215,7 +237,70 @@ def diagnose(
     return Diagnosis(table, tuple(r.run_id for r in fit_runs), tuple(r.run_id for r in hold_runs),
                      noise, where, coverage, sel, candidates, holdout, ident, notes, paths,
                      fit_b.n_steps >= MIN_FIT_STEPS and noise.reliable and not confounded
-                     and not untestable)
+                     and not untestable, unexplained)
+
+
+MIX_MIN_GAIN = 25.0  # held-out nats a mixture of scales must gain over one Gaussian
+
+
+def _chronology(b: Batch, order: Sequence[str]) -> np.ndarray:
+    pos = {rid: k for k, rid in enumerate(order)}
+    if any(rid not in pos for rid in b.run_ids):
+        missing = next(rid for rid in b.run_ids if rid not in pos)
+        raise InputError(f"run {missing!r}: not in the recorded order given")
+    return np.array([pos[rid] for rid in b.run_ids], float) / max(len(order) - 1, 1)
+
+
+def beyond_library(table: GaitTable, fit_b: Batch, hold_b: Batch, all_b: Batch,
+                   noise: NoiseFloor, sel: Selection, order: Sequence[str] | None,
+                   fit_p: Problem, hold_p: Problem) -> dict:
+    """Shape tests on all runs; if the gap is partly unexplained, the proposal and its kind.
+
+    Sets ``sel.verdict`` to ``partly_unexplained`` when a shape test fails."""
+    order = list(order) if order is not None else list(fit_b.run_ids) + list(hold_b.run_ids)
+    all_p = _problem(table, all_b, noise)
+    tests = shape_tests(all_p, sel.selected, noise,
+                        family_tests(all_p, sel.selected, _chronology(all_b, order)))
+    flags = flagged(tests)
+    if flags:
+        sel.verdict = "partly_unexplained"
+    out: dict = {"shape_tests": [t.to_json() for t in tests],
+                 "flags": [t.name for t in flags], "kind": None, "description": None,
+                 "proposal": None, "intermittent": None, "families": []}
+    if sel.verdict != "partly_unexplained":
+        return out
+    props, mix = propose(fit_p, hold_p, sel.selected, _chronology(fit_b, order),
+                         _chronology(hold_b, order), noise)
+    out["families"] = [{"family": q.family, "holdout_loglik_gain": round(q.holdout_gain / 2, 3),
+                        "p_value": q.p_value, "shrink": round(q.shrink, 4)} for q in props]
+    out["intermittent"] = mix
+    valid = [q for q in props if q.p_value < ALPHA and q.holdout_gain > 0]
+    mix_ok = (mix is not None and mix["holdout_loglik_gain"] > MIX_MIN_GAIN
+              and 0.03 <= mix["share"] <= 0.6
+              and abs(mix["scale_major"] - mix["scale_minor"]) > 0.3)
+    best = valid[0] if valid else None
+    if mix_ok and (best is None or mix["holdout_loglik_gain"] > best.holdout_gain):
+        out["kind"], out["description"] = "intermittent", mix["description"]
+        out["proposal"] = {"family": "intermittent", "kind": "intermittent",
+                           "description": mix["description"],
+                           "terms": [{"term": "the move scaled by a two-component mixture",
+                                      "share": round(mix["share"], 4),
+                                      "scales": [round(mix["scale_major"], 4),
+                                                 round(mix["scale_minor"], 4)]}],
+                           "holdout": {"loglik_gain": round(mix["holdout_loglik_gain"], 3),
+                                       **mix["holdout"]}}
+        best = None
+    elif best is not None:
+        out["kind"], out["description"] = best.kind, best.description
+    elif flags:
+        out["kind"], out["description"] = flags[0].kind, flags[0].description
+    else:
+        out["kind"] = "library_like"
+        out["description"] = ("structure of the library's kind remains (by gait cycle, "
+                              "gait change, time or world drift); see where_remaining")
+    if best is not None:
+        out["proposal"] = best.to_json()
+    return out
 
 
 def sel_names(sel: Selection) -> set[str]:
@@ -255,8 +340,9 @@ def identifiability(prob: Problem, names: Sequence[str]) -> dict:
     magnitude the runs could not tell the two apart."""
     w0 = prob.whitened([])
     bases, strength = {}, {}
+    names = [n for n in names if reference(n)]  # a user effect may give no reference
     for n in names:
-        cols = np.stack([w0 - prob.whitened([e]) for e in REFERENCE[n]], axis=1)
+        cols = np.stack([w0 - prob.whitened([e]) for e in reference(n)], axis=1)
         strength[n] = float((cols**2).sum(axis=0).min())
         q, r = np.linalg.qr(cols)
         keep = np.abs(np.diag(r)) > 1e-9 * max(np.abs(np.diag(r)).max(), 1e-300)
@@ -274,7 +360,7 @@ def identifiability(prob: Problem, names: Sequence[str]) -> dict:
                               "runs_that_separate": SEPARATE.get(frozenset({a, b}),
                                                                  GENERIC_SEPARATE)})
     return {"signal_at_reference": {n: round(v, 1) for n, v in strength.items()},
-            "reference": {n: [str(e) for e in REFERENCE[n]] for n in names},
+            "reference": {n: [str(e) for e in reference(n)] for n in names},
             "invisible": [n for n, v in strength.items() if v < MIN_SIGNAL],
             "alike": pairs}
 

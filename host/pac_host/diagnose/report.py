@@ -68,6 +68,7 @@ def to_json(d: Diagnosis, meta: dict | None = None) -> dict:
         "informative": d.informative,
         "holdout": d.holdout,
         "identifiability": d.identifiability,
+        "unexplained": d.unexplained,
         "notes": d.notes,
     }
     return _clean(doc)
@@ -112,6 +113,25 @@ def summary(d: Diagnosis) -> list[str]:
             lines.append(f"best candidate {best['effect']} not significant "
                          f"(held-out p={best['p_value']:.2g}, dBIC={best['delta_bic']:.1f})")
     if d.verdict == "partly_unexplained":
+        u = d.unexplained or {}
+        if u.get("flags"):
+            lines.append("the residual's shape is not noise's: " + ", ".join(u["flags"]))
+        if u.get("description"):
+            lines.append(f"what is missing ({u['kind']}): {u['description']}")
+        prop = u.get("proposal")
+        if prop:
+            ph = prop["holdout"]
+            with_lib = prop.get("with_library_effects")
+            lines.append(
+                f"proposed term ({prop['family']}, outside the library"
+                + (f", with {', '.join(with_lib)}" if with_lib else "") + "): "
+                + "; ".join(f"{t['term']} x {t['coefficient']:.4g}" if "coefficient" in t
+                            else t["term"] for t in prop["terms"][:4])
+                + (" ..." if len(prop["terms"]) > 4 else ""))
+            lines.append(f"  held-out: rollout end error {ph['rollout_cm_model']:.1f} (model) "
+                         f"-> {ph['rollout_cm_after']:.1f} cm, shrink {ph['shrink']:.2f}, "
+                         f"log-likelihood gain {ph['loglik_gain']:.1f}"
+                         + (f", p {ph['p_value']:.2g}" if "p_value" in ph else ""))
         rest = top_places(d.holdout["where_remaining"])
         if rest:
             lines.append("what remains unexplained (held-out runs):")

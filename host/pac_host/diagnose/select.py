@@ -39,6 +39,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import chi2
 
 from pac_host.diagnose import stats
 from pac_host.diagnose.fit import CHI2_1_95, FitResult, Problem, fit_effects, n_params
@@ -109,7 +110,7 @@ def _round(fit_prob: Problem, hold_prob: Problem, names: list[str], current: dic
         s2 = max(float(w1 @ w1) / max(n_hold, 1), 1e-12)
         z, p = stats.projection_p(w0, w1, s2)
         d = w0 - w1
-        out.append(Candidate(n, fr, lr, stats.chi2_sf(lr, df), -lr + df * math.log(n_fit),
+        out.append(Candidate(n, fr, lr, float(chi2.sf(lr, df)), -lr + df * math.log(n_fit),
                              gain, z, p, float(d @ d), w1))
     out.sort(key=lambda c: -c.gain)
     return out
@@ -263,7 +264,7 @@ def structure_test(prob: Problem, effects: Sequence[Effect]) -> dict:
     s2 = ssr_res / max(n - rank, 1)
     stat = (ssr - ssr_res) / s2 if s2 > 0 else 0.0
     return {"terms": int(rank), "statistic": round(stat, 3),
-            "p_value": stats.chi2_sf(stat, max(rank, 1)),
+            "p_value": float(chi2.sf(stat, max(rank, 1))),
             "variance_ratio": round(ssr / max(n, 1), 4),
             "components_rms": {c: round(float(np.sqrt((res[..., j][b.mask] ** 2).mean())), 4)
                                for j, c in enumerate(COMPONENTS)}}

@@ -8,7 +8,7 @@ short CGA run on the measured table and the paper's PAL test perturbations of it
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -52,6 +52,7 @@ def world_runs(
     start_pose: Sequence[float] = START_POSE,
     step_noise_cm: float = 0.0,
     step_noise_deg: float = 0.0,
+    perturb: Callable[..., np.ndarray] | None = None,
 ) -> list[Run]:
     """Run each turn cycle for ``n_cycles`` gait cycles in the world and observe it.
 
@@ -59,16 +60,28 @@ def world_runs(
     ``cycles_since_power_on`` grows within a session (what a battery effect acts on).
     ``step_noise_*`` add the robot's own step-to-step variability (Gaussian on F, T and dH of
     every gait cycle), on top of the tracker noise on every observed pose.
+    ``perturb(i, body, pose, n0, ids, rng)``, if given, changes step i's body-frame moves
+    (m, 3) of the m runs knowing the true poses (m, 3) before it: a world that depends on where
+    the robot is (what no effect of the model may know), for testing the diagnosis on gaps
+    outside its library; the runs are then integrated one gait cycle at a time.
     """
     ids, _ = expand(np.asarray(turn_cycles), n_cycles)
     m = len(ids)
     n0 = (np.arange(m) % runs_per_session) * n_cycles
-    body, world = step_moves(rows, ids, effects, n0)
+    body, world = step_moves(rows, ids, effects, n0, rng=rng)
     if step_noise_cm or step_noise_deg:
         body = body + rng.normal(size=body.shape) * np.array(
             [step_noise_cm, step_noise_cm, step_noise_deg])
     start = np.broadcast_to(np.asarray(start_pose, dtype=np.float64), (m, 3))
-    poses = integrate(start, body, world)
+    if perturb is None:
+        poses = integrate(start, body, world)
+    else:
+        poses = np.empty((m, body.shape[1] + 1, 3))
+        poses[:, 0] = start
+        for i in range(body.shape[1]):
+            b = perturb(i, body[:, i], poses[:, i], n0, ids, rng)
+            w = None if world is None else world[:, i : i + 1]
+            poses[:, i + 1] = integrate(poses[:, i], b[:, None], w)[:, -1]
     sd = np.array([pos_noise_cm, pos_noise_cm, heading_noise_deg])
     obs = poses + rng.normal(size=poses.shape) * sd
     return [Run(f"run{k:03d}", obs[k, 0], ids[k], obs[k, 1:], int(n0[k])) for k in range(m)]
@@ -113,6 +126,7 @@ def blind_case(
     perturb_table: bool = False,
     holdout_fraction: float = 0.3,
     step_noise: tuple[float, float] = (0.0, 0.0),
+    perturb: Callable[..., np.ndarray] | None = None,
 ) -> tuple[np.ndarray, list[Run], list[Run]]:
     """A true table, runs in a world with ``effects``, split into fitting and held-out runs.
 
@@ -126,6 +140,87 @@ def blind_case(
         rows = perturbed_rows(rows, rng)
     cycles = cga_turn_cycles(rng, n_runs)
     runs = world_runs(rows, effects, cycles, n_cycles, rng, pos_noise_cm, heading_noise_deg,
-                      step_noise_cm=step_noise[0], step_noise_deg=step_noise[1])
+                      step_noise_cm=step_noise[0], step_noise_deg=step_noise[1], perturb=perturb)
     fit, hold = split_runs(runs, holdout_fraction, rng)
     return rows, fit, hold
+
+
+# Gaps outside the library, for blind checks of what the diagnosis says when no effect of its
+# library is the cause. Each maker takes a Generator and a magnitude level (0 weak .. 2 strong)
+# and returns (perturb for :func:`world_runs`, a description of the truth). The kind is what
+# the diagnosis should name.
+def _uniform(rng: np.random.Generator, ranges: Sequence[tuple[float, float]], level: int) -> float:
+    lo, hi = ranges[level]
+    return float(rng.uniform(lo, hi))
+
+
+def _stall(rng, level):
+    p = _uniform(rng, [(0.04, 0.08), (0.08, 0.15), (0.15, 0.3)], level)
+
+    def perturb(i, body, pose, n0, ids, r):
+        stalled = r.random(len(body)) < p
+        return body * np.where(stalled, r.uniform(0.0, 0.25, len(body)), 1.0)[:, None]
+    return perturb, {"p": p}
+
+
+def _wobble(rng, level):
+    amp = _uniform(rng, [(1.0, 2.0), (2.0, 3.5), (3.5, 6.0)], level)
+    period, phase = float(rng.uniform(4.0, 15.0)), float(rng.uniform(0, 2 * np.pi))
+
+    def perturb(i, body, pose, n0, ids, r):
+        out = body.copy()
+        out[:, 2] += amp * np.sin(2 * np.pi * (n0 + i) / period + phase)
+        return out
+    return perturb, {"amplitude_deg": amp, "period": period}
+
+
+def _payload(rng, level):
+    d = _uniform(rng, [(0.06, 0.12), (0.12, 0.2), (0.2, 0.4)], level)
+    start = float(rng.uniform(0.3, 0.7))  # share of the runs (in recorded order) before it
+
+    def perturb(i, body, pose, n0, ids, r):
+        after = np.arange(len(body)) >= start * len(body)
+        return body * np.where(after, 1.0 - d, 1.0)[:, None]
+    return perturb, {"shrink": d, "from_run_share": start}
+
+
+def _floor_patch(rng, level):
+    f = _uniform(rng, [(0.1, 0.2), (0.2, 0.35), (0.35, 0.6)], level)
+    axis = int(rng.integers(0, 2))  # 0: a band of x, 1: a band of y
+    lo = float(rng.uniform(20.0, 100.0) if axis == 0 else rng.uniform(30.0, 150.0))
+    width = float(rng.uniform(50.0, 90.0))
+
+    def perturb(i, body, pose, n0, ids, r):
+        inside = (pose[:, axis] >= lo) & (pose[:, axis] < lo + width)
+        return body * np.where(inside, 1.0 - f, 1.0)[:, None]
+    return perturb, {"friction": f, "axis": "xy"[axis], "band": [lo, lo + width]}
+
+
+def _heading_pull(rng, level):
+    c = _uniform(rng, [(0.4, 0.8), (0.8, 1.5), (1.5, 3.0)], level)
+    toward = float(rng.uniform(0.0, 360.0))
+
+    def perturb(i, body, pose, n0, ids, r):
+        out = body.copy()
+        out[:, 2] += c * np.sin(np.radians(toward - pose[:, 2]))
+        return out
+    return perturb, {"deg_per_cycle": c, "toward": toward}
+
+
+def _warmup(rng, level):
+    a = _uniform(rng, [(0.1, 0.2), (0.2, 0.35), (0.35, 0.6)], level)
+    tau = float(rng.uniform(40.0, 150.0))
+
+    def perturb(i, body, pose, n0, ids, r):
+        return body * (1.0 - a * np.exp(-(n0 + i) / tau))[:, None]
+    return perturb, {"cold_loss": a, "tau_cycles": tau}
+
+
+OUTSIDE = {
+    "stall": ("intermittent", _stall),
+    "wobble": ("periodic", _wobble),
+    "payload": ("sudden_change", _payload),
+    "floor_patch": ("position", _floor_patch),
+    "heading_pull": ("heading", _heading_pull),
+    "warmup": ("time_since_power_on", _warmup),
+}

@@ -19,7 +19,7 @@ world-frame drift after each body-frame move.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,11 +37,24 @@ class ParamSpec:
 
 
 @dataclass(frozen=True)
+class StepContext:
+    """What a sequence effect may depend on; arrays are shaped like the executed gait ids."""
+
+    gait_ids: np.ndarray  # (..., n)
+    prev_ids: np.ndarray  # (..., n): the gait cycle before each one in the run, -1 at its start
+    since_power_on: np.ndarray  # (..., n): gait cycles executed since power-on before each one
+    rng: np.random.Generator | None  # the world's randomness; None when a model predicts
+
+
+@dataclass(frozen=True)
 class EffectSpec:
     name: str
     params: tuple[ParamSpec, ...]
     stage: str  # "table", "sequence" or "world"
     doc: str
+    # a user-defined effect: apply(body (..., n, 3), ctx, **params) -> body, see register_effect
+    apply: Callable[..., np.ndarray] | None = None
+    reference: dict | None = None  # a moderate magnitude, for the diagnosis' identifiability
 
 
 EFFECT_SPECS: dict[str, EffectSpec] = {
@@ -65,7 +78,44 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
                    "world", "a world-frame drift of s cm per gait cycle towards compass theta"),
     )
 }
-ORDER = tuple(EFFECT_SPECS)
+BUILT_IN = frozenset(EFFECT_SPECS)
+
+
+def register_effect(
+    name: str,
+    params: Sequence[ParamSpec],
+    apply: Callable[..., np.ndarray],
+    doc: str = "",
+    reference: dict | None = None,
+) -> EffectSpec:
+    """Add a user-defined effect to the one registry every command uses.
+
+    ``apply(body, ctx, **params)`` gets the body-frame moves (..., n, 3) (F cm, T cm, dH deg)
+    that the table and the built-in table and sequence effects give for the executed gait
+    cycles, and a :class:`StepContext`; it returns the moves it makes instead, same shape. A
+    random effect draws from ``ctx.rng`` in the simulated world and returns its expected move
+    when ``ctx.rng`` is None (a model's prediction: the diagnosis, the coverage simulator).
+    Parameters are continuous (``ParamSpec`` with ``integer=False``). It acts after the
+    built-in sequence effects and before a world-frame drift; diagnosis fits it like the
+    built-in ones.
+    """
+    if not name.isidentifier():
+        raise InputError(f"effect {name!r}: the name must be an identifier")
+    if name in BUILT_IN:
+        raise InputError(f"effect {name!r}: a built-in effect of that name exists")
+    if not callable(apply):
+        raise InputError(f"effect {name!r}: apply must be a function")
+    params = tuple(params)
+    for p in params:
+        if p.integer:
+            raise InputError(f"effect {name!r}: parameter {p.name} must be continuous")
+        if not p.lo <= p.neutral <= p.hi:
+            raise InputError(f"effect {name!r}: neutral {p.name}={p.neutral} outside its range")
+    spec = EffectSpec(name, params, "sequence", doc, apply, dict(reference) if reference else None)
+    EFFECT_SPECS[name] = spec
+    if reference is not None:
+        Effect(name, dict(reference))  # checks the reference's parameters
+    return spec
 
 
 @dataclass(frozen=True)
@@ -139,7 +189,8 @@ def parse_effect(text: str) -> Effect:
 
 
 def _canonical(effects: Iterable[Effect]) -> list[Effect]:
-    return sorted(effects, key=lambda e: ORDER.index(e.name))
+    order = list(EFFECT_SPECS)  # built-in effects first, user-defined ones as registered
+    return sorted(effects, key=lambda e: order.index(e.name))
 
 
 def effective_rows(rows: np.ndarray, effects: Iterable[Effect]) -> np.ndarray:
@@ -191,12 +242,14 @@ def step_moves(
     effects: Sequence[Effect] = (),
     n0: int | np.ndarray = 0,
     prev_gait: int | None = None,
+    rng: np.random.Generator | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Body-frame moves (..., n, 3) and world-frame drifts (..., n, 2) or None of a run.
 
     ``n0`` is the number of gait cycles executed since power-on before the run; ``prev_gait``
     is the gait executed just before ``gait_ids[0]`` in the same run (None at a run's start),
-    which lets the emulator's world advance one gait cycle at a time.
+    which lets the emulator's world advance one gait cycle at a time. ``rng`` is the world's
+    randomness for random user-defined effects (None: their expected move).
     """
     effects = _canonical(effects)
     gait_ids = np.asarray(gait_ids)
@@ -219,6 +272,25 @@ def step_moves(
             i = np.arange(gait_ids.shape[-1])
             factor = np.maximum(0.0, 1.0 - p["beta"] * (np.asarray(n0)[..., None] + i))
             body = body * factor[..., None]
+    user = [e for e in effects if EFFECT_SPECS[e.name].apply is not None]
+    if user:
+        ctx = _context(gait_ids, n0, prev_gait, rng)
+        for e in user:
+            out = np.asarray(EFFECT_SPECS[e.name].apply(body.copy(), ctx, **e.params), float)
+            if out.shape != body.shape:
+                raise InputError(f"effect {e.name}: apply returned shape {out.shape}, "
+                                 f"expected {body.shape}")
+            body = out
     drift = world_drift(effects)
     world = None if drift is None else np.broadcast_to(drift, body.shape[:-1] + (2,))
     return body, world
+
+
+def _context(gait_ids: np.ndarray, n0: int | np.ndarray, prev_gait: int | None,
+             rng: np.random.Generator | None) -> StepContext:
+    prev = np.full(gait_ids.shape, -1, dtype=np.int64)
+    prev[..., 1:] = gait_ids[..., :-1]
+    if prev_gait is not None and gait_ids.shape[-1] > 0:
+        prev[..., 0] = prev_gait
+    since = np.asarray(n0)[..., None] + np.arange(gait_ids.shape[-1])
+    return StepContext(gait_ids, prev, np.broadcast_to(since, gait_ids.shape), rng)
