@@ -7,7 +7,9 @@ Everything a run produces lives in one output directory:
 - ``observations.jsonl``: every observation, appended and flushed before it is used (start
   poses, the pose after each gait cycle, manual counts), including those of a run cut short;
 - ``log.jsonl``: one line per punctuation (tests, observed and predicted figures, run ids,
-  model fitness before and after the model GA, the best model, the operational solution);
+  model fitness before and after the model GA, the best model, the operational solution, and
+  ``recovery``: the link's retries, resyncs, dropped reports and redone tests, counted and
+  listed);
 - ``runs.jsonl``: the observed runs in the format of DESIGN.md 4 (input to diagnosis);
 - ``model.json`` (pac-gait-table/1) and ``turn_cycle.json``: the current best model and the
   operational solution;
@@ -239,6 +241,7 @@ def evolve(
             used = rec["used_gait_ids"]
             rec["true_error_on_used"] = {"before": error_on_used(model_before, conn.truth, used),
                                          "after": error_on_used(state.models[0], conn.truth, used)}
+        rec["recovery"] = _recovery_record(robot)
         rec["timing"] = {"robot_s": round(timer.seconds, 4), "cga_s": round(cga_s, 4),
                          "model_ga_s": round(time.perf_counter() - t0 - timer.seconds, 4)}
         _persist(d, state, rng, rec, robot, timer, model_name, records)
@@ -247,6 +250,22 @@ def evolve(
         if state.generation >= cfg.generations:
             return rec
         state, cga_s = _advance(state, rng, cfg)
+
+
+def _recovery_record(robot: LinkedRobot) -> dict:
+    """This punctuation's recovery: counts, and each event without the per-run noise."""
+    rec = robot.take_recovery()
+    return {**rec.counts(), "events": rec.events}
+
+
+def recovery_summary(root: Path) -> dict:
+    """Retries, resyncs, dropped reports and redone tests over every punctuation logged."""
+    total: dict[str, int] = {}
+    for r in _read_jsonl(EvolveDir(root).log):
+        for k, v in r.get("recovery", {}).items():
+            if k != "events":
+                total[k] = total.get(k, 0) + v
+    return total
 
 
 def _advance(state: pal.PALState, rng: np.random.Generator, cfg: EvolveConfig

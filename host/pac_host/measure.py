@@ -27,6 +27,7 @@ from pac_host.model.kinematics import moves_between
 from pac_host.model.table import COMPONENTS, N_IDS, GaitTable
 from pac_host.robot.connect import Connection
 from pac_host.robot.linked import AppendLog, observed_run, run_seed
+from pac_host.robot.recovery import Recovery, with_redos
 
 MEASURE_START = (90.0, 90.0, 0.0)  # the middle of the area's first two rows, facing +y
 SEED_KEY = 1_000_000  # keeps measure's run seeds apart from evolve's (generation, test) keys
@@ -110,12 +111,30 @@ def measure(
     log: AppendLog,
     runs: AppendLog | None = None,
     progress: Callable[[int, int, int], None] | None = None,
+    recovery: Recovery | None = None,
 ) -> list[Fit]:
-    """Walk and observe every id; returns one :class:`Fit` per id, in ``cfg.ids`` order."""
+    """Walk and observe every id; returns one :class:`Fit` per id, in ``cfg.ids`` order.
+    A measurement whose link broke down mid-way is redone from its placement
+    (:func:`pac_host.robot.recovery.with_redos`); every retry, resync and redo is logged and
+    counted in ``recovery``."""
     cfg.check()
+    recovery = recovery if recovery is not None else Recovery()
+    current = {"run_id": ""}
+
+    def note(doc: dict) -> None:
+        doc = {**doc, **current}
+        recovery.note(doc)
+        log(doc)
+
+    conn.robot.link.on_event = note
     fits = []
     for gait in cfg.ids:
-        moves = [measure_once(conn, cfg, gait, r, log, runs) for r in range(cfg.repeats)]
+        moves = []
+        for r in range(cfg.repeats):
+            current["run_id"] = f"m{gait}-r{r}"
+            moves.append(with_redos(
+                conn.robot, lambda _k, g=gait, r=r: measure_once(conn, cfg, g, r, log, runs),
+                note, observer=conn.observer))
         fits.append(fit(np.concatenate(moves), gait))
         if progress is not None:
             progress(gait, len(fits), len(cfg.ids))
@@ -129,9 +148,9 @@ def measure_once(conn: Connection, cfg: MeasureConfig, gait: int, rep: int, log:
     seen = conn.placer.place(run_id, cfg.start, run_seed(cfg.seed, SEED_KEY + gait, rep))
     log({"type": "start", "run_id": run_id, "gait": gait, "nominal_start": list(cfg.start),
          "observed_start": seen})
-    n0 = conn.robot.status().power_on
+    n0 = conn.robot.power_on()
     conn.observer.begin(run_id, n0, log)
-    report = conn.robot.step(gait, cfg.cycles, lambda c: conn.observer.on_cycle(c.power_on))
+    report = conn.robot.step(gait, cfg.cycles, lambda c: conn.observer.on_cycle(c.power_on), n0)
     obs = conn.observer.finish(report.done)
     if not report.completed:
         raise PacError(f"run {run_id}: the robot stopped after {report.done} of {cfg.cycles} "

@@ -94,6 +94,7 @@ class StampLoader:
         self.answer_timeout = answer_timeout
         self.ack_timeout = ack_timeout
         self.progress = progress or (lambda stage, done, total: None)
+        self.packets_written = 0  # acknowledged packets of the last (or current) download
         self._name = getattr(port, "port", None) or getattr(port, "name", "the port")
 
     # -- wire helpers -------------------------------------------------------------------------
@@ -217,12 +218,14 @@ class StampLoader:
         for p in packets:
             if len(p) != PACKET_SIZE:
                 raise ValueError("image packets must be 18 bytes")
+        self.packets_written = 0
         self.progress("reset", 0, len(packets))
         line = self.reset()
         self.progress("identify", 0, len(packets))
         version = self.identify(line)
         for i, p in enumerate(packets):
             self.send_packet(i, len(packets), p)
+            self.packets_written = i + 1
             self.progress("packet", i + 1, len(packets))
         self.finish()
         self.progress("done", len(packets), len(packets))

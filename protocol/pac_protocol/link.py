@@ -3,6 +3,14 @@
 :class:`StampLink` waits for the Stamp's READY, sends one request, reads the answer, and
 retries on a NAK for a bad check, a lost request or a lost reply. Reports the Stamp sends
 unasked (CYCLE, DONE, BOOT) are queued in order for the caller. It never prints.
+
+Recovery comes in two layers (PROTOCOL.md 6): ``attempts`` retries of the identical request
+(the Stamp's SEQ deduplication makes them safe), then up to ``resyncs`` resynchronisations: any
+partial frame is forgotten, STATUS (itself retried) reads what the Stamp is doing, and the
+request is tried again with its original SEQ. Only then :class:`NoAnswer` is raised. A line on
+which nothing at all arrives is given up at once (a dead line, not a noisy one). Each retry and
+resync is counted in :class:`LinkStats` and passed to ``on_event`` as a dict, for the caller's
+log.
 """
 
 from __future__ import annotations
@@ -52,6 +60,7 @@ from pac_protocol.messages import (
 READY_TIMEOUT_S = 2.0  # T_IDLE + the longest gait cycle (1.31 s, firmware) + margin
 REPLY_TIMEOUT_S = 0.3
 ATTEMPTS = 4
+RESYNCS = 2  # rounds of STATUS + the same request again, after the attempts are used up
 QUIET_S = 0.05  # a partial frame older than this is abandoned (PROTOCOL.md 6)
 EVENT_TIMEOUT_S = 5.0  # longest wait for the next report of a run
 HINTS = {
@@ -77,6 +86,7 @@ class LinkStats:
     echoes: int = 0  # request-direction frames received (pin-16 echo)
     undecodable: int = 0
     boots: int = 0
+    resyncs: int = 0
 
 
 class _Retry(Exception):
@@ -97,14 +107,19 @@ class StampLink:
         ready_timeout: float = READY_TIMEOUT_S,
         reply_timeout: float = REPLY_TIMEOUT_S,
         attempts: int = ATTEMPTS,
+        resyncs: int = RESYNCS,
         quiet_s: float = QUIET_S,
         clock: Callable[[], float] = time.monotonic,
+        on_event: Callable[[dict], None] | None = None,
     ) -> None:
         self.port = port
         self.name = name or str(getattr(port, "port", None) or getattr(port, "name", "port"))
         self.ready_timeout = ready_timeout
         self.reply_timeout = reply_timeout
         self.attempts = attempts
+        self.resyncs = resyncs
+        self.on_event = on_event  # called with each retry and resync (a dict), for a log
+        self.last_status: StatusReply | None = None  # what the last resync read
         self.quiet_s = quiet_s
         self.clock = clock
         self.decoder = FrameDecoder()
@@ -196,29 +211,25 @@ class StampLink:
             return f"{self.rx_bytes} bytes but no valid frame (wrong baud rate or not a ServoBot?)"
         return "nothing"
 
+    def _event(self, doc: dict) -> None:
+        if self.on_event is not None:
+            self.on_event(doc)
+
     def request(self, msg: Message) -> Message:
-        """Send one request and return the Stamp's reply, retrying as PROTOCOL.md 4.2 says."""
+        """Send one request and return the Stamp's reply, retrying as PROTOCOL.md 4.2 says,
+        then resynchronising (module docstring) before giving up."""
         seq = self._next_seq()
         data = msg.encode(seq)
         self.stats.requests += 1
-        ready_now = False
         why = ""
-        for attempt in range(self.attempts):
-            if attempt:
-                self.stats.retries += 1
-            if not ready_now and self._wait_ready(self.clock() + self.ready_timeout) is None:
-                raise NoAnswer(
-                    f"{self.name}: no READY from the Stamp within {self.ready_timeout:g} s "
-                    f"(expected frames starting A5 5A; received {self._heard()})"
-                )
-            self.port.write(data)
-            self.stats.sends += 1
-            t0 = self.clock()
+        for rnd in range(self.resyncs + 1):
+            if rnd and not self._resync(msg, why):
+                why += "; STATUS unanswered too"
+                continue
             try:
-                reply = self._await_reply(msg, seq)
-                self.last_round_trip_s = self.clock() - t0
+                reply = self._exchange(msg, seq, data, first=rnd == 0)
             except _Retry as r:
-                why, ready_now = str(r), r.ready_now
+                why = str(r)
                 continue
             if isinstance(msg, Hello):
                 self._acted_seq = 0
@@ -226,10 +237,63 @@ class StampLink:
                 self._acted_seq = seq
             return reply
         raise NoAnswer(
-            f"{self.name}: no answer to {msg.describe()} after {self.attempts} attempts "
-            f"(expected {reply_cmd(msg.CMD):02X} with SEQ {seq}; last: {why}; "
-            f"received {self._heard()})"
+            f"{self.name}: no answer to {msg.describe()} after {self.attempts} attempts and "
+            f"{self.resyncs} resynchronisation(s) (expected {reply_cmd(msg.CMD):02X} with SEQ "
+            f"{seq}; last: {why}; received {self._heard()})"
         )
+
+    def _exchange(self, msg: Message, seq: int, data: bytes, first: bool) -> Message:
+        """Up to ``attempts`` sends of ``data``; raises _Retry with the last reason."""
+        ready_now = False
+        why = ""
+        for attempt in range(self.attempts):
+            if attempt or not first:
+                self.stats.retries += 1
+                self._event({"type": "retry", "request": msg.describe(), "seq": seq,
+                             "why": why})
+            if not ready_now:
+                rx = self.rx_bytes
+                if self._wait_ready(self.clock() + self.ready_timeout) is None:
+                    if self.rx_bytes == rx:  # not a byte: a dead line, not a noisy one
+                        raise NoAnswer(
+                            f"{self.name}: no READY from the Stamp within "
+                            f"{self.ready_timeout:g} s (expected frames starting A5 5A; "
+                            f"received {self._heard()})"
+                        )
+                    why = f"no fresh READY within {self.ready_timeout:g} s"
+                    continue
+            self.port.write(data)
+            self.stats.sends += 1
+            t0 = self.clock()
+            try:
+                reply = self._await_reply(msg, seq)
+            except _Retry as r:
+                why, ready_now = str(r), r.ready_now
+                continue
+            self.last_round_trip_s = self.clock() - t0
+            return reply
+        raise _Retry(why)
+
+    def _resync(self, msg: Message, why: str) -> bool:
+        """Forget any partial frame, then ask STATUS (retried, never resynchronised itself):
+        True if the Stamp answered, what it is doing then in :attr:`last_status`. HELLO is not
+        used here: it clears the Stamp's lastSeq, which a pending LOAD, RUN or STEP relies on."""
+        self.stats.resyncs += 1
+        self.decoder = FrameDecoder()
+        self._frames.clear()
+        seq = self._next_seq()
+        status = Status()
+        try:
+            st = self._exchange(status, seq, status.encode(seq), first=True)
+        except _Retry as r:
+            self._event({"type": "resync", "request": msg.describe(), "why": why,
+                         "answered": False, "status_why": str(r)})
+            return False
+        assert isinstance(st, StatusReply)
+        self.last_status = st
+        self._event({"type": "resync", "request": msg.describe(), "why": why, "answered": True,
+                     "state": int(st.state), "done": st.done, "power_on": st.power_on})
+        return True
 
     def _await_reply(self, msg: Message, seq: int) -> Message:
         deadline = self.clock() + self.reply_timeout

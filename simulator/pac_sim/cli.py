@@ -24,6 +24,7 @@ from pac_host.cli.options import (
 from pac_host.errors import TOOLKIT_ERRORS, InputError, exit_code
 from pac_sim.line import WINDOW_FLOOR_S, Faults
 from pac_sim.runner import SimConfig, SimStamp
+from pac_sim.targeted import parse_targets
 
 
 def _floats(text: str, n: int, what: str) -> tuple[float, ...]:
@@ -60,10 +61,15 @@ def build_config(**o: object) -> SimConfig:
     pos, head = _floats(o["tracker_noise"], 2, "--tracker-noise")
     if pos < 0 or head < 0:
         raise InputError(f"--tracker-noise must be >= 0, got {o['tracker_noise']!r}")
+    try:
+        targets = parse_targets(o["drop_at"], o["corrupt_at"])
+    except ValueError as e:
+        raise InputError(str(e)) from None
     faults = Faults(
         _prob(o["drop_prob"], "--drop-prob"),
         _prob(o["corrupt_prob"], "--corrupt-prob"),
         o["silent"],
+        targets,
     )
     return SimConfig(
         factor=o["realtime"],
@@ -157,6 +163,19 @@ def _report_downloads(stamp: object, seen: int) -> int:
 @click.option("--drop-prob", default=0.0, type=float, help="Drop each byte with this probability.")
 @click.option(
     "--corrupt-prob", default=0.0, type=float, help="Corrupt each byte with this probability."
+)
+@click.option(
+    "--drop-at",
+    multiple=True,
+    metavar="KIND:N:BYTE",
+    help="Drop byte BYTE (0-based) of the N-th frame of type KIND (e.g. CYCLE:165:6, "
+    "RUN:1:4); repeatable.",
+)
+@click.option(
+    "--corrupt-at",
+    multiple=True,
+    metavar="KIND:N:BYTE",
+    help="Flip every bit of byte BYTE of the N-th frame of type KIND; repeatable.",
 )
 @click.option(
     "--reset-after",

@@ -42,7 +42,7 @@ from pac_sim.pbasic import (
 )
 from pac_sim.pbasic.hostlink import serve
 from pac_sim.pbasic.image import read_image
-from pac_sim.stamp_download import StampDownload, serve_download
+from pac_sim.stamp_download import StampDownload, serve_downloads
 from pac_sim.thrust import ServoMap, ThrustCounter, WalkedCycle, walked_gait
 from pac_sim.world import World
 
@@ -175,7 +175,8 @@ class FirmwareEmulator:
                               floor_s=self._floor, echo=False, keep_output=False,
                               on_chunk=self._on_chunk)
             except DownloadStart as d:
-                self._flashed(serve_download(self.line, d.data, self._eeprom_now()))
+                serve_downloads(self.line, d.data, self._eeprom_now, self._flashed,
+                                self.line.aimed_packets)
                 continue
             except Shutdown:
                 return

@@ -22,6 +22,7 @@ import numpy as np
 from pac_protocol.frame import REQUEST_PAYLOAD, SYNC
 from pac_protocol.timing import BYTE_S
 from pac_sim.stamp_download import starts_download
+from pac_sim.targeted import FrameTarget, FrameTargets, PacketTargets
 
 WAIT_PATTERN = SYNC + bytes([REQUEST_PAYLOAD])  # WAIT($A5, $5A, $03)
 REQUEST_TAIL = 3 + REQUEST_PAYLOAD  # CMD SEQ P0 P1 P2 CHK after the WAIT
@@ -45,11 +46,13 @@ class DownloadStart(Exception):
 
 @dataclass(frozen=True)
 class Faults:
-    """Fault injection, per byte in both directions, plus a mute device."""
+    """Fault injection, per byte in both directions, plus a mute device; ``targets`` aim at
+    chosen bytes of chosen frames (:mod:`pac_sim.targeted`)."""
 
     drop_prob: float = 0.0
     corrupt_prob: float = 0.0
     silent: bool = False
+    targets: tuple[FrameTarget, ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("drop_prob", "corrupt_prob"):
@@ -91,10 +94,16 @@ class PtyLine:
         self.lost = 0  # bytes that arrived while the Stamp was not listening
         self._last_rx = time.monotonic()  # when the host last sent a byte
         self.muted = False  # set by mute(): the cable is pulled, nothing reaches the host
+        self.aimed_out = FrameTargets(tuple(t for t in faults.targets if t.outgoing))
+        self.aimed_in = FrameTargets(tuple(t for t in faults.targets if not t.outgoing))
+        self.aimed_packets = PacketTargets(faults.targets)
 
     # ---- faults -------------------------------------------------------------------------------
 
-    def _damage(self, data: bytes) -> bytes:
+    def _damage(self, data: bytes, outgoing: bool) -> bytes:
+        """The line's faults on bytes going out (to the host) or coming in: targeted, then
+        random."""
+        data = (self.aimed_out if outgoing else self.aimed_in).apply(data)
         f = self.faults
         if not (f.drop_prob or f.corrupt_prob) or not data:
             return data
@@ -149,7 +158,7 @@ class PtyLine:
             raise DownloadStart(data)  # a reset: whatever the firmware was doing ends here
         if self.echo and not (self.faults.silent or self.muted):
             self._write(data)
-        return self._damage(data)
+        return self._damage(data, outgoing=False)
 
     def write_raw(self, data: bytes) -> None:
         """Bytes to the host, untouched and at once (the download protocol)."""
@@ -173,7 +182,7 @@ class PtyLine:
         driver that paces the bytes itself, as the PBASIC host link does)."""
         if self.faults.silent or self.muted:
             return
-        data = self._damage(data)
+        data = self._damage(data, outgoing=True)
         self.sent += len(data)
         self._write(data)
 

@@ -36,7 +36,7 @@ from pac_protocol.messages import (
 from pac_protocol.timing import T_CYCLE_S, T_EEPROM_WRITE_S, T_IDLE_S, T_PROCESS_S, T_RUN_S
 from pac_sim.eeprom import Eeprom
 from pac_sim.line import DownloadStart, Shutdown
-from pac_sim.stamp_download import StampDownload, serve_download, servobot_eeprom
+from pac_sim.stamp_download import StampDownload, serve_downloads, servobot_eeprom
 from pac_sim.world import World
 
 FIRMWARE_VERSION = 1
@@ -111,7 +111,8 @@ class StampEmulator:
                 except _Reset:
                     continue
                 except DownloadStart as d:
-                    self._flashed(serve_download(self.line, d.data, self._eeprom_image()))
+                    serve_downloads(self.line, d.data, self._eeprom_image, self._flashed,
+                                self.line.aimed_packets)
         except Shutdown:
             return
 

@@ -19,6 +19,8 @@ request's payload byte is never taken for a reset.
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -38,6 +40,7 @@ from pac_host.stamp_loader import (
     VERSION_REQUEST,
     id_answer,
 )
+from pac_sim.targeted import PacketTargets
 
 RESET_SILENCE_S = 0.02
 BS2_INTERPRETER = 0x10  # BCD 1.0
@@ -75,10 +78,21 @@ class StampDownload:
         self.packets = 0
         self.finished = False  # the host sent the end byte: the new program runs
         self.failed: str | None = None  # why the module left download mode early
+        self.restart: bytes | None = None  # a new download's first bytes (the host reset)
 
     @property
     def active(self) -> bool:
         return not self.finished and self.failed is None
+
+    @property
+    def in_packets(self) -> bool:
+        """True once identification is done: host bytes are packet bytes (or the end byte)."""
+        return self.active and self._stage > len(ID_BYTES)
+
+    @property
+    def packet_pos(self) -> int:
+        """Bytes of the current packet received so far."""
+        return len(self._packet)
 
     @property
     def eeprom(self) -> bytes:
@@ -159,17 +173,52 @@ def servobot_eeprom(firmware_version: int, turn_cycle: bytes) -> bytes:
 
 
 def serve_download(
-    line: RawLine, first: bytes, eeprom_before: bytes, idle_s: float = DOWNLOAD_IDLE_S
+    line: RawLine, first: bytes, eeprom_before: bytes, idle_s: float = DOWNLOAD_IDLE_S,
+    aim: PacketTargets | None = None,
 ) -> StampDownload:
     """Answer one download on ``line``, starting with the bytes ``first`` already received.
 
-    Returns when the host ends the download, breaks the protocol, or goes quiet for ``idle_s``.
+    Returns when the host ends the download, breaks the protocol, goes quiet for ``idle_s``,
+    or resets the Stamp again (a new download starts: its bytes are in ``restart``). ``aim``
+    drops or corrupts chosen packet bytes (``PACKET:N:BYTE`` faults).
     """
     dl = StampDownload(eeprom_before=eeprom_before)
+    if aim is not None:
+        aim.new_download()
     line.write_raw(dl.feed(first))
+    last = time.monotonic()
     while dl.active:
         data = line.read_raw(idle_s)
         if not data:
             break
-        line.write_raw(dl.feed(data))
+        now = time.monotonic()
+        if dl.in_packets and starts_download(data[0], now - last):
+            dl.failed, dl.restart = "the host reset the Stamp mid-download", data
+            break
+        last = now
+        line.write_raw(_feed_aimed(dl, data, aim))
     return dl
+
+
+def _feed_aimed(dl: StampDownload, data: bytes, aim: PacketTargets | None) -> bytes:
+    if aim is None or not aim.targets:
+        return dl.feed(data)
+    out = bytearray()
+    for b in data:  # END ends a download only between packets
+        if dl.in_packets and (aim.mid_packet or b != END_OF_DOWNLOAD):
+            out += dl.feed(aim.byte(b))
+        else:
+            out += dl.feed(bytes([b]))
+    return bytes(out)
+
+
+def serve_downloads(line: RawLine, first: bytes, eeprom_now: Callable[[], bytes],
+                    flashed: Callable[[StampDownload], None],
+                    aim: PacketTargets | None = None) -> None:
+    """:func:`serve_download`, then again for every reset the host makes mid-download (a
+    flash tried again after a failure); ``flashed`` sees each session as it ends."""
+    data: bytes | None = first
+    while data:
+        dl = serve_download(line, data, eeprom_now(), aim=aim)
+        flashed(dl)
+        data = dl.restart

@@ -29,7 +29,8 @@ def read_jsonl(path: Path) -> list[dict]:
 def results(out: Path) -> dict:
     """What a run decided: the punctuation records (minus wall-clock timing), the model, the
     operational turn cycle."""
-    log = [{k: v for k, v in r.items() if k != "timing"} for r in read_jsonl(out / "log.jsonl")]
+    log = [{k: v for k, v in r.items() if k not in ("timing", "recovery")}
+           for r in read_jsonl(out / "log.jsonl")]
     return {"log": log, "model": json.loads((out / "model.json").read_text()),
             "turn_cycle": json.loads((out / "turn_cycle.json").read_text())}
 

@@ -54,17 +54,6 @@ def test_evolve_writes_a_complete_log_and_the_model_error_falls(baseline):
         assert (baseline / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_byte_faults_change_nothing(baseline, tmp_path):
-    out = tmp_path / "faults"
-    res = invoke("evolve", "--out", str(out), "--generations", "40", *SMALL,
-                 "--drop-prob", "0.002", "--corrupt-prob", "0.002", "--sim-seed", "7")
-    assert res.exit_code == 0, res.output
-    assert results(out) == results(baseline)
-    assert (out / "runs.jsonl").read_text() == (baseline / "runs.jsonl").read_text()
-    done = [o for o in read_jsonl(out / "observations.jsonl") if o["type"] == "done"]
-    assert sum(o["lost_reports"] for o in done) > 0  # the faults really hit the line
-
-
 def test_robot_that_stops_answering_then_resume(baseline, tmp_path):
     out = tmp_path / "cut"
     # 3 tests x 100 gait cycles per punctuation: gait cycle 650 is the 50th of g40-t0

@@ -1,11 +1,14 @@
 """`pac-host evolve --port` against `pac-sim --firmware`: the paper's loop with the firmware
-itself walking the tests (its servo trace moving the emulated world), for two punctuations."""
+itself walking the tests (its servo trace moving the emulated world), for two punctuations, on a
+clean line and on one that drops and corrupts 1% of the bytes each way (the firmware's own
+timing, not the protocol-level model's, is what the host's recovery must meet)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from pac_host.coverage import START_POSE
 from pac_host.model import rollout, shifted_table
@@ -15,12 +18,19 @@ from .conftest import SMALL, evolve_against_pac_sim, invoke, read_jsonl, results
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "servobot.bs2"
 
 
-def test_evolve_against_the_firmware_in_the_loop(tmp_path):
-    builtin = tmp_path / "builtin"
-    res = invoke("evolve", "--out", str(builtin), "--generations", "20", *SMALL)
+@pytest.fixture(scope="module")
+def builtin(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("fw") / "builtin"
+    res = invoke("evolve", "--out", str(out), "--generations", "20", *SMALL)
     assert res.exit_code == 0, res.output
+    return out
+
+
+@pytest.mark.parametrize("line", [(), ("--drop-prob", "0.01", "--corrupt-prob", "0.01",
+                                       "--seed", "5")], ids=["clean", "noisy"])
+def test_evolve_against_the_firmware_in_the_loop(tmp_path, builtin, line):
     out = tmp_path / "firmware"
-    stderr = evolve_against_pac_sim(out, 20, "--firmware", str(FIRMWARE))
+    stderr = evolve_against_pac_sim(out, 20, "--firmware", str(FIRMWARE), *line)
     assert "warning" not in stderr  # every gait cycle's thrust matched its row
     log = read_jsonl(out / "log.jsonl")
     assert [r["generation"] for r in log] == [0, 20]
@@ -36,3 +46,5 @@ def test_evolve_against_the_firmware_in_the_loop(tmp_path):
         del r["true_error_on_used"]
     assert results(out) == base
     assert (out / "runs.jsonl").read_text() == (builtin / "runs.jsonl").read_text()
+    if line:  # the noisy line really needed the recovery
+        assert sum(r["recovery"]["retries"] for r in log) > 0

@@ -11,10 +11,11 @@ from pac_host import limits
 from pac_host.cli.link_options import ask, confirm, emulator_options, given, link_options
 from pac_host.cli.options import Bounded, learning_options
 from pac_host.errors import InputError
-from pac_host.evolve import EvolveConfig, evolve, load_config, save_config
+from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
 from pac_host.model.table import BUILTIN
 from pac_host.robot.connect import connect
 from pac_host.robot.observers import ManualObserver
+from pac_host.robot.recovery import describe_counts
 
 
 @click.command("evolve")
@@ -113,6 +114,9 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
     if last:
         click.echo(f"operational turn cycle {last['operational']} (fitness "
                    f"{last['operational_fitness']} on the robot); files in {root}")
+        rec = recovery_summary(root)
+        if rec:
+            click.echo(describe_counts(rec))
 
 
 def _spec(table: str) -> str:

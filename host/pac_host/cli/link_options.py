@@ -39,6 +39,11 @@ OPTIONS = [
                  help="Emulator: drop each byte on the line with this probability."),
     click.option("--corrupt-prob", default=0.0, type=float,
                  help="Emulator: corrupt each byte on the line with this probability."),
+    click.option("--drop-at", multiple=True, metavar="KIND:N:BYTE",
+                 help="Emulator: drop byte BYTE of the N-th frame of type KIND (e.g. "
+                      "CYCLE:165:6); repeatable."),
+    click.option("--corrupt-at", multiple=True, metavar="KIND:N:BYTE",
+                 help="Emulator: flip every bit of byte BYTE of the N-th KIND frame."),
     click.option("--mute-after", default=None, type=int, metavar="N",
                  help="Emulator: stop answering after N gait cycles (tests a dead link)."),
 ]
@@ -57,7 +62,7 @@ def given(name: str) -> bool:
 
 
 SIM_NAMES = ("sim_table", "sim_effects", "sim_noise", "sim_realtime", "sim_seed", "drop_prob",
-             "corrupt_prob", "mute_after")
+             "corrupt_prob", "drop_at", "corrupt_at", "mute_after")
 
 
 def emulator_options(o: dict, port: str | None) -> EmulatorOptions | None:
@@ -80,6 +85,7 @@ def emulator_options(o: dict, port: str | None) -> EmulatorOptions | None:
         table=load_with_effects(o.pop("sim_table"), o.pop("sim_effects")),
         noise=(pos, head), realtime=o.pop("sim_realtime"), seed=o.pop("sim_seed"),
         drop_prob=o.pop("drop_prob"), corrupt_prob=o.pop("corrupt_prob"),
+        drop_at=tuple(o.pop("drop_at")), corrupt_at=tuple(o.pop("corrupt_at")),
         mute_after=o.pop("mute_after"))
 
 

@@ -21,6 +21,7 @@ from pac_host.measure import (
 from pac_host.model.table import COMPONENTS, resolve_table, save_table
 from pac_host.robot.connect import connect
 from pac_host.robot.linked import AppendLog
+from pac_host.robot.recovery import Recovery, describe_counts
 
 
 def _pose(text: str) -> tuple[float, float, float]:
@@ -69,15 +70,17 @@ def measure_cmd(ids, repeats, cycles, start, seed, table_spec, out_path, port, o
         side[k].unlink(missing_ok=True)
     with connect(port, observer_spec, emu, ask, confirm, "pose", placer) as conn:
         click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
+        recovery = Recovery()
         fits = measure(conn, cfg, AppendLog(side[".observations.jsonl"]),
-                       AppendLog(side[".runs.jsonl"]))
+                       AppendLog(side[".runs.jsonl"]), recovery=recovery)
     table = measured_table(current, fits, out_path.stem)
     save_table(table, out_path)
     diffs = differences(current, fits)
     side[".measure.json"].write_text(json.dumps({
         "format": "pac-gait-measurement/1", "compared_with": current.name,
         "repeats": repeats, "cycles": cycles, "start": list(cfg.start),
-        "fits": [f.to_json() for f in fits], "differences": diffs}, indent=1) + "\n")
+        "fits": [f.to_json() for f in fits], "differences": diffs,
+        "recovery": recovery.counts()}, indent=1) + "\n")
     import numpy as np
 
     from pac_host.table_plots import table_differences
@@ -98,6 +101,7 @@ def measure_cmd(ids, repeats, cycles, start, seed, table_spec, out_path, port, o
     click.echo(f"{flagged} of {len(fits)} ids differ from {current.name} by more than 3 "
                f"standard errors; wrote {out_path}, {side['.measure.json'].name}, "
                f"{side['.png'].name}")
+    click.echo(describe_counts(recovery.counts()))
 
 
 def register(main: click.Group) -> None:

@@ -34,6 +34,8 @@ class EmulatorOptions:
     seed: int = 0
     drop_prob: float = 0.0
     corrupt_prob: float = 0.0
+    drop_at: tuple[str, ...] = ()  # KIND:N:BYTE, see pac_sim.targeted
+    corrupt_at: tuple[str, ...] = ()
     mute_after: int | None = None
 
 
@@ -92,6 +94,7 @@ def _emulated(stack: contextlib.ExitStack, observer_spec: str | None, o: Emulato
               ask: Ask | None, manual_mode: str) -> Connection:
     from pac_sim.line import Faults
     from pac_sim.runner import SimConfig, SimStamp
+    from pac_sim.targeted import parse_targets
 
     if o.realtime < 0:
         raise InputError(f"--sim-realtime must be >= 0, got {o.realtime}")
@@ -100,8 +103,13 @@ def _emulated(stack: contextlib.ExitStack, observer_spec: str | None, o: Emulato
     for name, p in (("--drop-prob", o.drop_prob), ("--corrupt-prob", o.corrupt_prob)):
         if not 0 <= p <= 1:
             raise InputError(f"{name} must be in [0, 1], got {p}")
+    try:
+        targets = parse_targets(o.drop_at, o.corrupt_at)
+    except ValueError as e:
+        raise InputError(str(e)) from None
     sim = SimStamp(SimConfig(
-        factor=o.realtime, faults=Faults(o.drop_prob, o.corrupt_prob), seed=o.seed,
+        factor=o.realtime, faults=Faults(o.drop_prob, o.corrupt_prob, targets=targets),
+        seed=o.seed,
         table=o.table, effects=o.effects, tracker_noise=o.noise, tracker=("127.0.0.1", 0),
         mute_after=o.mute_after,
     ))

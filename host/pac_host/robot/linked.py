@@ -5,6 +5,13 @@ emulator's world), the turn cycle is loaded, run for the budget, and observed; t
 from the observed path (:func:`pac_host.coverage.coverage_of_poses`) or from the operator's
 count. Every observation is appended to the run's log before it is used, so a robot that stops
 answering mid-run leaves a log holding everything seen up to then.
+
+A test whose link broke down mid-way (the robot silent or reset, after the link's own retries
+and resynchronisations) is redone from its start, at most
+``redos`` times: the robot is stopped and said HELLO to again (a fresh session), re-placed (the
+operator is asked again, or the emulator is placed), and the test runs again. Every retry,
+resync, dropped report and redone test is logged as it happens and counted in
+:attr:`LinkedRobot.recovery`.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ from pac_host.pal import TestResult
 from pac_host.robot.api import StampRobot
 from pac_host.robot.observers import Observation, Observer, ObserverError
 from pac_host.robot.placement import Placer
+from pac_host.robot.recovery import REDOS, Recovery, with_redos
 
 
 class AppendLog:
@@ -63,8 +71,11 @@ class LinkedRobot:
 
     def __init__(self, robot: StampRobot, observer: Observer, placer: Placer,
                  budget: int, log: AppendLog, seed: int = 0,
-                 start_pose: Sequence[float] = START_POSE) -> None:
+                 start_pose: Sequence[float] = START_POSE, redos: int = REDOS) -> None:
         self.robot = robot
+        self.redos = redos
+        self.recovery = Recovery()
+        robot.link.on_event = self._link_event
         self.observer = observer
         self.placer = placer
         self.budget = budget
@@ -80,25 +91,45 @@ class LinkedRobot:
         return [self.run_one(f"g{self.generation}-t{i}", np.asarray(t), (self.generation, i))
                 for i, t in enumerate(tests)]
 
+    def take_recovery(self) -> Recovery:
+        """The recovery since the last call (one punctuation's), and start counting afresh."""
+        rec, self.recovery = self.recovery, Recovery()
+        return rec
+
+    def _link_event(self, doc: dict) -> None:
+        doc = {**doc, "run_id": self.current_run}
+        self.recovery.note(doc)
+        self.log(doc)
+
     def run_one(self, run_id: str, genes: np.ndarray, key: tuple[int, ...]) -> TestResult:
-        """Place, load, run the budget, observe, score one turn cycle (9, 2)."""
+        """Place, load, run the budget, observe, score one turn cycle (9, 2); redo it from its
+        start if the link broke down mid-way (module docstring)."""
         self.current_run = run_id
+        return with_redos(self.robot, lambda k: self._attempt(run_id, genes, key, k),
+                          self._link_event, self.redos, self.observer)
+
+    def _attempt(self, run_id: str, genes: np.ndarray, key: tuple[int, ...], attempt: int
+                 ) -> TestResult:
         genes = np.asarray(genes, dtype=np.int64).reshape(-1, 2)
         stored = [(int(g), int(r)) for g, r in genes if r > 0]
-        seen = self.placer.place(run_id, self.start_pose, run_seed(self.seed, *key))
+        label = f"{run_id} (redone after a link failure, attempt {attempt + 1})" if attempt \
+            else run_id
+        seen = self.placer.place(label, self.start_pose, run_seed(self.seed, *key))
         start = tuple(seen) if seen is not None else self.start_pose
         self.log({"type": "start", "run_id": run_id, "turn_cycle": stored,
-                  "nominal_start": list(self.start_pose), "observed_start": seen})
+                  "nominal_start": list(self.start_pose), "observed_start": seen,
+                  **({"attempt": attempt} if attempt else {})})
         if not stored or self.budget == 0:  # nothing to walk: the robot stays where it is
             poses = np.tile(np.asarray(start), (self.budget, 1))
             return self._result(run_id, start, [], poses, 0, Observation(poses=poses))
         self.robot.load(stored)
-        n0 = self.robot.status().power_on
+        n0 = self.robot.power_on()
         self.observer.begin(run_id, n0, self.log)
-        report = self.robot.run(self.budget, lambda c: self.observer.on_cycle(c.power_on))
+        report = self.robot.run(self.budget, lambda c: self.observer.on_cycle(c.power_on), n0)
         obs = self.observer.finish(report.done)
         self.log({"type": "done", "run_id": run_id, "cycles": report.done,
                   "completed": report.completed, "lost_reports": report.lost_reports,
+                  "implausible_reports": report.implausible,
                   "power_on_before": report.power_on_before})
         if not report.completed:
             raise PacError(f"run {run_id}: the robot stopped after {report.done} of "

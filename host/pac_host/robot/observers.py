@@ -123,6 +123,24 @@ class LineSource:
         raw, self._buf = self._buf.split(b"\n", 1)
         return raw.decode(errors="replace").rstrip("\r")
 
+    def drain(self) -> int:
+        """Forget the whole lines already received (a partial last line is kept: its end is
+        still coming); returns how many."""
+        while select.select([self.fd], [], [], 0)[0]:
+            try:
+                chunk = os.read(self.fd, 65536)
+            except BlockingIOError:
+                break
+            except OSError as e:
+                raise ObserverError(f"observer {self.name}: read failed: {e.strerror}") from None
+            if not chunk:
+                break  # end of stream: readline reports it
+            self._buf += chunk
+        cut = self._buf.rfind(b"\n") + 1
+        n = self._buf[:cut].count(b"\n")
+        self._buf = self._buf[cut:]
+        return n
+
     def write_line(self, text: str) -> None:
         """Send a line back (TCP sources only)."""
         if self._write is None:
@@ -178,6 +196,11 @@ class TrackerObserver:
         self._run_id, self._n0, self._record = run_id, power_on_before, record
         self._poses = []
         self._asked = 0
+
+    def forget(self) -> None:
+        """Drop the lines received so far: they belong to a test cut short, whose power-on
+        counts a redone test may reuse after a reset (called before the redo)."""
+        self.source.drain()
 
     def on_cycle(self, power_on: int) -> None:
         self._take_until((power_on - self._n0) % POWER_ON_MOD)
