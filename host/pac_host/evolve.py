@@ -26,7 +26,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +37,7 @@ from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError
 from pac_host.experiment import ExperimentConfig, initial_population
 from pac_host.files import write_atomic
 from pac_host.model.table import GaitTable, resolve_table, save_table
+from pac_host.pal import model_generations_for
 from pac_host.robot.connect import Connection
 from pac_host.robot.linked import AppendLog, LinkedRobot
 
@@ -52,7 +53,7 @@ class EvolveConfig:
     model_fitness: str = "coverage"
     generations: int = 1000
     interval: int = 40
-    model_generations: int = 40
+    model_generations: int | None = None  # None: 40 for the paper's GA, 0 on a fitted table
     cga_population: int = 128
     model_population: int = 64
     budget: int = 200
@@ -64,6 +65,10 @@ class EvolveConfig:
     search: str = "cga"
     search_evaluations: int = 0
     robot: dict = field(default_factory=dict)  # what played the robot (a resume reuses it)
+    correction: str = pal.PALConfig.correction
+    structure: str = pal.PALConfig.structure
+    tests: str = pal.PALConfig.tests
+    operational: str = pal.PALConfig.operational
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -78,16 +83,28 @@ class EvolveConfig:
                             ("cga_population", limits.CGA_POPULATION),
                             ("model_population", limits.MODEL_POPULATION),
                             ("budget", limits.BUDGET)):
-            bound.check(getattr(self, name), f"--{name.replace('_', '-')}")
+            if getattr(self, name) is not None:  # model_generations None: by the correction
+                bound.check(getattr(self, name), f"--{name.replace('_', '-')}")
         self.pal().check()
 
     def pal(self) -> pal.PALConfig:
         return pal.PALConfig(
             method=self.method, model_fitness=self.model_fitness,
             generations=self.generations, interval=self.interval,
-            model_generations=self.model_generations, cga_population=self.cga_population,
-            model_population=self.model_population, budget=self.budget, search=self.search,
+            model_generations=model_generations_for(self.correction, self.model_generations),
+            cga_population=self.cga_population,
+            model_population=self.model_population, budget=self.budget,
+            correction=self.correction, structure=self.structure, tests=self.tests,
+            operational=self.operational, search=self.search,
             search_evaluations=self.search_evaluations)
+
+    def for_counts_only(self) -> EvolveConfig:
+        """The settings to use when the observer reports coverage counts, not paths: the
+        paper's six coverage differences and its model GA (nothing else can use counts)."""
+        return replace(self, correction="ga", model_fitness="coverage")
+
+    def needs_paths(self) -> bool:
+        return self.correction == "fit" or self.model_fitness == "steps"
 
 
 class RunInterrupted(PacError):

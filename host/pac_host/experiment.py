@@ -39,6 +39,8 @@ from pac_host.search.optimize import OptimizeConfig, run_chain
 
 STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM = 0, 1, 2
 METHODS = ("full", "partial", "oracle")
+TARGET = 0.9  # punctuations to the target: operational coverage at 90% of the best known
+FINAL_TARGET = 0.95  # and where a run ends, against the best known
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,7 @@ class ExperimentConfig:
     # (chains of pac_host.search.optimize with optimum_evaluations each)
     optimum_search: str = "cga"
     optimum_evaluations: int = 5_000_000
+    best_known: int | None = None  # the best fitness known on the actual robot, if known
     pal: pal.PALConfig = field(default_factory=pal.PALConfig)
 
     def check(self) -> None:
@@ -66,6 +69,9 @@ class ExperimentConfig:
         if self.optimum_search not in ("cga", "optimize"):
             raise InputError(f"optimum search must be cga or optimize, got {self.optimum_search}")
         limits.EVALUATIONS.check(self.optimum_evaluations, "--optimum-evaluations")
+        if self.best_known is not None and self.best_known < 1:
+            raise InputError(f"--best-known must be at least 1, got {self.best_known}")
+        self.pal.check()
         bad = [m for m in self.methods if m not in METHODS]
         if bad or not self.methods or len(set(self.methods)) != len(self.methods):
             raise InputError(f"--methods takes {', '.join(METHODS)} (each once), got "
@@ -126,19 +132,22 @@ def pal_run(
     CGA's model is the actual robot's table, unperturbed and never evolved."""
     fields = {**_pal_fields(cfg.pal), "method": method, "generations": cfg.generations}
     if method == "oracle":
-        fields.update(method="partial", model_population=1, model_generations=0)
+        fields.update(method="partial", model_population=1, model_generations=0,
+                      correction="ga", tests="paper")
         model = actual
     pcfg = pal.PALConfig(**fields)
     rng = _rng(cfg.base_seed, seed, STAGE_PAL)
     robot = pal.SimulatedRobot(actual, pcfg.budget)
     state = pal.initial_state(model, rng, pcfg, init_pop)
     curve: list[tuple[int, int]] = []
+    seconds: list[float] = []
     truth = effective_rows(actual.rows, actual.effects)
 
     def log(st: pal.PALState, record: dict) -> None:
         record["method"] = method
         curve.append((record["generation"], record["operational_fitness"]))
-        record["model_error"] = _model_error(st.models[0], truth)
+        seconds.append(record["robot_seconds"])
+        record["model_error"] = _model_error(effective_rows(st.models[0], st.model_effects), truth)
         record["model"] = st.models[0].round(6).tolist()
         if log_path is not None:
             line = json.dumps({"seed": seed, **record}) + "\n"
@@ -152,10 +161,61 @@ def pal_run(
         "method": method,
         "generations": [g for g, _ in curve],
         "coverage": [f for _, f in curve],
+        "robot_hours": _hours(seconds),
         "operational": format_turn_cycle(state.operational),
-        "final_model_error": _model_error(state.models[0], truth),
+        "final_model_error": _model_error(effective_rows(state.models[0], state.model_effects),
+                                          truth),
         "final_model": state.models[0].round(6).tolist(),
     }
+
+
+def _hours(seconds: Sequence[float]) -> list[float]:
+    """Cumulative robot hours after each punctuation."""
+    return np.round(np.cumsum(seconds) / 3600.0, 4).tolist()
+
+
+def punctuations_to(coverage: Sequence[int], target: float) -> int | None:
+    """How many punctuations until the operational coverage first reached ``target``."""
+    for i, c in enumerate(coverage):
+        if c >= target:
+            return i + 1
+    return None
+
+
+def robot_time_report(runs: list[dict], best_known: int) -> dict:
+    """Per method: punctuations and robot hours to 90% of the best known, and where runs end.
+
+    Seeds that never reach the target count as not reached (beyond any figure) in the
+    median, so a median over seeds most of which missed is reported as None.
+    """
+    out: dict = {}
+    by: dict[str, list[dict]] = {}
+    for r in runs:
+        by.setdefault(r["method"], []).append(r)
+    for m, rs in by.items():
+        to = [r["punctuations_to_target"] for r in rs]
+        hours = [r["robot_hours"][n - 1] if n else None for r, n in zip(rs, to, strict=True)]
+        key = [n if n is not None else np.inf for n in to]
+        med = float(np.median(key)) if key else None
+        reached = [n for n in to if n is not None]
+        out[m] = {
+            "seeds": len(rs),
+            "reached_target": len(reached),
+            "median_punctuations_to_target": med if med is not None and np.isfinite(med)
+            else None,
+            "punctuations_to_target_range": [min(reached), max(reached)] if reached else None,
+            "median_robot_hours_to_target": (
+                float(np.median([h if h is not None else np.inf for h in hours]))
+                if reached and np.isfinite(med) else None),
+            "ended_at_final_target": sum(r["coverage"][-1] >= FINAL_TARGET * best_known
+                                         for r in rs),
+            "median_final_over_best_known": round(float(np.median(
+                [r["coverage"][-1] / best_known for r in rs])), 4),
+            "robot_hours_per_run": round(float(np.median([r["robot_hours"][-1] for r in rs])),
+                                         3),
+        }
+    return {"best_known": best_known, "target": TARGET, "final_target": FINAL_TARGET,
+            "methods": out}
 
 
 def _model_error(model: np.ndarray, truth: np.ndarray) -> list[dict]:
@@ -328,8 +388,10 @@ def run_experiment(
          "how": f"the best of {cfg.optimum_runs} {_optimum_search(cfg)['runs']} on the actual "
                 "robot's table, and of every operational turn cycle the experiment's runs "
                 "tested on it"}, indent=1) + "\n")
+    best_known = max(optimum, cfg.best_known or 0)
     for r in results:
         r["reached_optimum_at"] = reached_at(r["generations"], r["coverage"], optimum)
+        r["punctuations_to_target"] = punctuations_to(r["coverage"], TARGET * best_known)
     results.sort(key=lambda r: (r["method"], r["seed"]))
     summary = {
         "format": "pac-experiment/1",
@@ -340,6 +402,7 @@ def run_experiment(
         "optimum": optimum,
         "runs": results,
         "comparison": compare(results, cfg, optimum),
+        "robot_time": robot_time_report(results, best_known),
     }
     write_atomic(out_dir / "summary.json", json.dumps(summary, indent=1) + "\n")
     return summary
@@ -360,5 +423,6 @@ def _result_from_log(recs: list[dict], seed: int, method: str) -> dict:
     return {"seed": seed, "method": method,
             "generations": [r["generation"] for r in recs],
             "coverage": [r["operational_fitness"] for r in recs],
+            "robot_hours": _hours([r.get("robot_seconds", 0.0) for r in recs]),
             "operational": recs[-1]["operational"],
             "final_model_error": recs[-1]["model_error"], "final_model": recs[-1]["model"]}

@@ -27,7 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
-from pac_host import cga, limits, model_ga
+from pac_host import cga, limits, model_fit, model_ga, test_selection
 from pac_host.coverage import (
     DEFAULT_BUDGET,
     MAX_REPS,
@@ -40,6 +40,10 @@ from pac_host.coverage import (
 )
 from pac_host.errors import InputError
 from pac_host.model.table import GaitTable
+from pac_host.robot_time import seconds_of_tests
+
+CORRECTIONS = ("ga", "fit")
+OPERATIONAL = ("best", "tested")
 
 
 @dataclass(frozen=True)
@@ -104,7 +108,7 @@ class PALConfig:
     model_fitness: str = "coverage"  # the paper's six differences; "steps": observed paths
     generations: int = 1000  # CGA generations in all
     interval: int = 40  # CGA generations between punctuations
-    model_generations: int = 40  # model GA generations per punctuation
+    model_generations: int = 0  # model GA generations per punctuation (the paper: 40)
     cga_population: int = 128
     model_population: int = 64
     budget: int = DEFAULT_BUDGET
@@ -115,21 +119,48 @@ class PALConfig:
     # search on the model while the robot walks the tests (pac_host.search.anytime).
     search: str = "cga"
     search_evaluations: int = 0
+    # The model correction: "ga", the model GA alone (the paper); "fit", the whole table fitted
+    # to every observed step (effects of the library, then rows by evidence: model_fit), then
+    # ``model_generations`` of the model GA on top (0: the fitted table alone).
+    correction: str = "fit"
+    structure: str = "effects"  # with "fit": "effects" or "none" (rows by evidence alone)
+    tests: str = "informative"  # "paper": best + two perturbations; "informative": test_selection
+    operational: str = "tested"  # "best": only the CGA's best may replace it (the paper)
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
-
-    def check(self) -> None:
-        if self.search not in ("cga", "ils"):
-            raise InputError(f"search between punctuations must be cga or ils, got "
-                             f"{self.search!r}")
-        if self.search != "cga":
-            limits.SEARCH_EVALUATIONS.check(self.search_evaluations, "--search-evaluations")
 
     def cga_config(self) -> cga.CGAConfig:
         return replace(self.cga, population=self.cga_population, budget=self.budget)
 
     def model_config(self) -> model_ga.ModelGAConfig:
         return replace(self.model, population=self.model_population, budget=self.budget)
+
+    def check(self) -> None:
+        """One clear error for a setting out of its choices."""
+        for name, choices in (("correction", CORRECTIONS), ("structure", model_fit.STRUCTURES),
+                              ("tests", test_selection.CHOICES), ("operational", OPERATIONAL),
+                              ("method", model_ga.METHODS), ("model_fitness", model_ga.FITNESSES)):
+            if getattr(self, name) not in choices:
+                raise InputError(f"--{name.replace('_', '-')} takes {', '.join(choices)}, "
+                                 f"got {getattr(self, name)!r}")
+        if self.search not in ("cga", "ils"):
+            raise InputError(f"search between punctuations must be cga or ils, got "
+                             f"{self.search!r}")
+        if self.search != "cga":
+            limits.SEARCH_EVALUATIONS.check(self.search_evaluations, "--search-evaluations")
+
+
+# The paper's method (DESIGN.md 2.5): PALConfig(**PAPER) runs it with today's exact results.
+PAPER = {"correction": "ga", "tests": "paper", "operational": "best", "model_fitness": "coverage",
+         "model_generations": 40}
+
+
+def model_generations_for(correction: str, given: int | None) -> int:
+    """Model GA generations per punctuation: as given, else the paper's 40 for its model GA
+    and none on a fitted table (the GA on top was not measured to help: docs/learning.md)."""
+    if given is not None:
+        return given
+    return PAPER["model_generations"] if correction == "ga" else 0
 
 
 @dataclass
@@ -143,6 +174,8 @@ class PALState:
     operational: np.ndarray  # (9, 2), the robot's current turn cycle
     operational_score: int | None  # its coverage score on the robot (None: not tested yet)
     operational_fitness: int | None
+    base: GaitTable | None = None  # the starting model ("fit" corrects it from all evidence)
+    observed: tuple = ()  # every observed test so far (model_fit.Observed), for "fit"
 
 
 def initial_state(
@@ -159,7 +192,8 @@ def initial_state(
         cga_pop = cga.random_population(rng, cfg.cga_population)
     fit = cga.fitness(model.rows, cga_pop, cfg.budget, model.effects)
     cga_pop = cga_pop[np.argsort(-fit, kind="stable")]
-    return PALState(0, cga_pop, models, tuple(model.effects), cga_pop[0].copy(), None, None)
+    return PALState(0, cga_pop, models, tuple(model.effects), cga_pop[0].copy(), None, None,
+                    model)
 
 
 def perturbations(best: np.ndarray, rng: np.random.Generator, cfg: PALConfig) -> np.ndarray:
@@ -205,8 +239,7 @@ def punctuate(
     ``rng`` first, so the result is the same either way. Returns the new state and a
     JSON-ready record of what happened.
     """
-    best = state.cga_pop[0]
-    tests = np.concatenate([best[None], perturbations(best, rng, cfg)])
+    tests = choose_tests(state, rng, cfg)
     model_rows = state.models[0]
     predicted = simulate(model_rows, tests, cfg.budget, state.model_effects)
     search = None
@@ -227,19 +260,29 @@ def punctuate(
         if search is not None:
             search()
 
-    replaced = state.operational_score is None or results[0].score > state.operational_score
+    # the operational turn cycle: the best tested (or only the CGA's best, as in the paper),
+    # replaced only when it does better on the robot
+    k = int(np.argmax([r.score for r in results])) if cfg.operational == "tested" else 0
+    replaced = state.operational_score is None or results[k].score > state.operational_score
     if replaced:
-        operational, op_score, op_fit = best.copy(), results[0].score, results[0].fitness
+        operational, op_score, op_fit = tests[k].copy(), results[k].score, results[k].fitness
     else:
         operational = state.operational
         op_score, op_fit = state.operational_score, state.operational_fitness
 
-    error_fn = model_error_fn(tests, results, cfg, state.model_effects)
-    error_before = error_fn(state.models[:1])[0]
-    models, errors = model_ga.evolve(
-        state.models, tests, None, cfg.model_generations, rng, cfg.method,
-        cfg.model_config(), state.model_effects, error_fn,
-    )
+    if cfg.correction == "fit":
+        models, errors, model_effects, observed, fit_record = _fit_correction(
+            state, tests, results, rng, cfg)
+        error_before = model_error_fn(tests, results, replace(cfg, model_fitness="steps"),
+                                      state.model_effects)(state.models[:1])[0]
+    else:
+        error_fn = model_error_fn(tests, results, cfg, state.model_effects)
+        error_before = error_fn(state.models[:1])[0]
+        models, errors = model_ga.evolve(
+            state.models, tests, None, cfg.model_generations, rng, cfg.method,
+            cfg.model_config(), state.model_effects, error_fn,
+        )
+        model_effects, observed, fit_record = state.model_effects, state.observed, {}
     record = {
         "generation": state.generation,
         "method": cfg.method,
@@ -250,21 +293,66 @@ def punctuate(
             for c, o, f in zip(predicted.blocks_covered, predicted.blocks_covered_once,
                                predicted.fitness, strict=True)
         ],
-        "model_fitness": cfg.model_fitness,
+        "model_fitness": "steps" if cfg.correction == "fit" else cfg.model_fitness,
+        "correction": cfg.correction,
         "model_error_before": _number(error_before),
         "model_error_after": _number(errors[0]),
         "used_gait_ids": model_ga.used_gait_ids(tests, cfg.budget).tolist(),
         "operational": format_turn_cycle(operational),
         "operational_fitness": int(op_fit),
         "operational_replaced": bool(replaced),
+        "robot_seconds": round(float(seconds_of_tests(tests, cfg.budget).sum()), 3),
+        **fit_record,
     }
     pop = state.cga_pop
     if search is not None:
         pop = search.pop
         record["search"] = search.record
-    new = PALState(state.generation, pop, models, state.model_effects, operational,
-                   op_score, op_fit)
+    new = PALState(state.generation, pop, models, tuple(model_effects), operational,
+                   op_score, op_fit, state.base, observed)
     return new, record
+
+
+def choose_tests(state: PALState, rng: np.random.Generator, cfg: PALConfig) -> np.ndarray:
+    """The turn cycles to run: the CGA's best and two more (:mod:`pac_host.test_selection`)."""
+    best = state.cga_pop[0]
+    pert = perturbations(best, rng, cfg)
+    if cfg.tests != "informative":
+        return np.concatenate([best[None], pert])
+    row_var = state.models.var(axis=0).sum(axis=-1)
+    return test_selection.choose(best, pert, state.cga_pop, state.models, row_var, cfg.budget,
+                                 state.model_effects)
+
+
+def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult],
+                    rng: np.random.Generator, cfg: PALConfig):
+    """The whole-table correction from every observed step (:mod:`pac_host.model_fit`), then
+    the model GA (``cfg.method``) on the rows these tests used, if ``model_generations``."""
+    if any(r.poses is None for r in results):
+        raise InputError("model correction 'fit' needs the robot's observed paths; this observer "
+                         "reports coverage counts only (use --correction ga)")
+    new = tuple(model_fit.Observed(model_fit.expand_ids(t, cfg.budget)[: len(r.poses) - 1],
+                                   np.asarray(r.poses)) for t, r in zip(tests, results,
+                                                                        strict=True))
+    observed = tuple(state.observed) + new
+    base = state.base or GaitTable(state.models[0], state.model_effects)
+    post = model_fit.correct(base, observed, rng, cfg.structure, cfg.model_config().scale)
+    size = cfg.model_population
+    if cfg.model_generations > 0:
+        used = model_ga.used_gait_ids(tests, cfg.budget)
+        error_fn = model_ga.step_error(tests, [r.poses for r in results], cfg.budget,
+                                       post.effects)
+        models, errors = model_ga.evolve(
+            post.sample(size, rng, rows=used), tests, None, cfg.model_generations, rng,
+            cfg.method, cfg.model_config(), post.effects, error_fn)
+    else:
+        models = post.sample(size, rng)
+        errors = model_ga.step_error(tests, [r.poses for r in results], cfg.budget,
+                                     post.effects)(models[:1])
+    record = {"structure": [str(e) for e in post.selected],
+              "evidence": post.evidence.tolist(),
+              "row_sd": post.sd.round(4).tolist()}
+    return models, errors, post.effects, observed, record
 
 
 class _AnytimeSearch:
@@ -343,6 +431,10 @@ def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
         "operational": state.operational.tolist(),
         "operational_score": state.operational_score,
         "operational_fitness": state.operational_fitness,
+        "base": None if state.base is None else state.base.to_json(),
+        "observed": [{"gait_ids": o.gait_ids.tolist(), "poses": o.poses.tolist(),
+                      "cycles_since_power_on": o.cycles_since_power_on}
+                     for o in state.observed],
         "rng": rng.bit_generator.state,
     }
 
@@ -350,6 +442,7 @@ def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
 def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
     """Inverse of :func:`state_to_json`."""
     from pac_host.model.effects import effect_from_json
+    from pac_host.model.table import table_from_json
 
     if not isinstance(doc, dict) or doc.get("format") != "pac-pal-state/1":
         raise InputError("not a pac-pal-state/1 document")
@@ -364,6 +457,11 @@ def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
             np.array(doc["operational"], dtype=np.int64),
             doc["operational_score"],
             doc["operational_fitness"],
+            None if doc.get("base") is None else table_from_json(doc["base"], "PAL state base"),
+            tuple(model_fit.Observed(np.array(o["gait_ids"], dtype=np.int64),
+                                     np.array(o["poses"], dtype=np.float64),
+                                     int(o.get("cycles_since_power_on", 0)))
+                  for o in doc.get("observed", [])),
         )
     except (KeyError, TypeError, ValueError) as e:
         raise InputError(f"PAL state is incomplete or malformed ({e})") from None

@@ -69,7 +69,40 @@ def experiment_plots(summary: dict, out_dir: Path) -> list[Path]:
     paths = [coverage_per_seed(summary, m, out_dir / f"coverage_{m}.png")
              for m in summary["config"]["methods"]]
     paths.append(mean_coverage(summary, out_dir / "coverage_means.png"))
+    if "robot_time" in summary:
+        paths.append(robot_time(summary, out_dir / "robot_time.png"))
     return paths
+
+
+def robot_time(summary: dict, path: Path) -> Path:
+    """Median and range over seeds of the operational coverage, per method, against
+    punctuations (robot tests) and against robot hours, with the target line."""
+    import numpy as np
+
+    rt = summary["robot_time"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), dpi=110, sharey=True)
+    for method in rt["methods"]:
+        runs = [r for r in summary["runs"] if r["method"] == method]
+        cov = np.array([r["coverage"] for r in runs], dtype=float)
+        hours = np.median(np.array([r["robot_hours"] for r in runs], dtype=float), axis=0)
+        med, lo, hi = np.median(cov, axis=0), cov.min(axis=0), cov.max(axis=0)
+        n = np.arange(1, cov.shape[1] + 1)
+        colour = METHOD_COLOURS.get(method)
+        for ax, x in ((axes[0], n), (axes[1], hours)):
+            ax.step(x, med, where="post", lw=2, color=colour, label=f"{method}: median")
+            ax.fill_between(x, lo, hi, step="post", alpha=0.2, color=colour)
+    for ax, label in ((axes[0], "punctuations (3 robot tests each)"),
+                      (axes[1], "robot hours (median over seeds)")):
+        ax.axhline(rt["best_known"], color="k", ls="--", lw=1, label="best known")
+        ax.axhline(rt["target"] * rt["best_known"], color="k", ls=":", lw=1,
+                   label=f"{rt['target']:.0%} of the best known")
+        ax.set_xlabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("operational coverage on the actual robot (3R + c)")
+    axes[0].set_ylim(0, rt["best_known"] + 2)
+    axes[0].legend(fontsize=7, loc="lower right")
+    fig.suptitle("Operational coverage against robot time: median and range over seeds")
+    return _save(fig, path)
 
 
 def coverage_path(poses, blocks, path: Path, title: str = "Coverage path",
@@ -128,7 +161,9 @@ def learning_progress(records: list[dict], path: Path, title: str = "Learning pr
     ax2 = ax.twinx()
     ax2.plot(gens, [r["model_error_before"] for r in records], color="tab:gray", lw=1, ls=":",
              label="model error on the new tests")
-    ax2.set_ylabel("model error (sum of 6 differences)")
+    steps = bool(records) and records[-1].get("model_fitness") == "steps"
+    ax2.set_ylabel("model error (RMS of the observed steps, cm)" if steps
+                   else "model error (sum of 6 differences)")
     lines = ax.get_legend_handles_labels()
     lines2 = ax2.get_legend_handles_labels()
     ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=7, loc="upper left")

@@ -1,12 +1,14 @@
 """Named settings profiles: each is a dict of :class:`pac_host.pal.PALConfig` field overrides.
 
-- ``paper``: no overrides. :class:`~pac_host.pal.PALConfig`'s own defaults are the paper's
-  settings (40 generations of the plain CGA, population 128, today's operators, between
-  punctuations) and the experiment establishes its optimum with long CGA runs, so this profile
-  reproduces the figures published for the paper's experiment, seed for seed.
-- ``default``: anytime PAL. Between punctuations the CGA's place is taken by iterated local
-  search (:mod:`pac_host.search`) with a budget of coverage evaluations per punctuation, run
-  while the robot walks the tests; the experiment's optimum comes from
+- ``paper``: the paper's method (:data:`pac_host.pal.PAPER`: its model GA on the six coverage
+  differences, its tests, its operational rule) and its search, 40 generations of the plain
+  CGA (population 128, today's operators) between punctuations; the experiment establishes its
+  optimum with long CGA runs. It reproduces the figures published for the paper's experiment,
+  seed for seed.
+- ``default``: :class:`~pac_host.pal.PALConfig`'s model side (the whole-table correction) and
+  anytime PAL: between punctuations the CGA's place is taken by iterated local search
+  (:mod:`pac_host.search`) with a budget of coverage evaluations per punctuation, run while the
+  robot walks the tests; the experiment's optimum comes from
   :func:`pac_host.search.optimize.optimize`.
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
@@ -18,9 +20,10 @@ from __future__ import annotations
 from dataclasses import fields, replace
 
 from pac_host.errors import InputError
+from pac_host.pal import PAPER
 
 PROFILES: dict[str, dict] = {
-    "paper": {},
+    "paper": {**PAPER, "search": "cga"},
     "default": {"search": "ils", "search_evaluations": 250_000},
 }
 DEFAULT = "default"

@@ -8,8 +8,9 @@ from pac_host import pal
 from pac_host.coverage import parse_turn_cycle
 from pac_host.model import measured_table, shifted_table
 
-SMALL = pal.PALConfig(cga_population=24, model_population=16, generations=80,
-                      model_generations=5)
+# the paper's method (the default is the whole-table correction: tests/host/test_learning.py)
+SMALL = pal.PALConfig(**{**pal.PAPER, "cga_population": 24, "model_population": 16,
+                         "generations": 80, "model_generations": 5})
 
 
 def test_perturbations_follow_the_paper():

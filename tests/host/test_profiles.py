@@ -51,7 +51,7 @@ def test_paper_profile_reproduces_the_results_from_before_bit_for_bit(tmp_path):
 
 
 def test_profiles_are_pal_overrides():
-    assert profiles.apply("paper", pal.PALConfig()) == pal.PALConfig()
+    assert profiles.apply("paper", pal.PALConfig()) == pal.PALConfig(**pal.PAPER)
     cfg = profiles.apply("default", pal.PALConfig())
     assert cfg.search == "ils" and cfg.search_evaluations > 0
     with pytest.raises(InputError):

@@ -38,9 +38,12 @@ def test_evolve_runs_diagnose_then_evolve_on_the_corrected_model(tmp_path):
     (bias,) = [e for e in table.effects if e.name == "yaw_bias"]
     assert abs(bias.params["delta"] - 1.2) < 0.2
 
+    # the paper's model GA keeps the model's effects as they are (the default whole-table
+    # correction refits them and folds table-level ones into the rows)
     second = tmp_path / "evolve2"
     res = _invoke("evolve", "--out", str(second), "--generations", "20", *SMALL,
-                  "--model", str(corrected), "--sim-effect", "yaw_bias:delta=1.2")
+                  "--model", str(corrected), "--sim-effect", "yaw_bias:delta=1.2",
+                  "--correction", "ga", "--tests", "paper", "--operational", "best")
     assert res.exit_code == 0, res.output
     kept = load_table(second / "model.json").effects
     assert [e.name for e in kept] == [e.name for e in table.effects]

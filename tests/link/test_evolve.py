@@ -131,7 +131,9 @@ def test_evolve_with_manual_counts(tmp_path):
     rec = read_jsonl(out / "log.jsonl")[0]
     assert [(o["blocks_covered"], o["blocks_covered_once"], o["fitness"])
             for o in rec["observed"]] == [(5, 3, 2), (4, 4, 4), (6, 2, 3)]
-    assert rec["operational_fitness"] == 2
+    assert rec["operational_fitness"] == 4  # the best tested turn cycle (--operational tested)
+    assert "coverage counts only" in res.output and rec["correction"] == "ga"
+    assert rec["model_fitness"] == "coverage"
     assert (out / "runs.jsonl").read_text() == ""  # counts are not paths: nothing to diagnose
     figs = [o for o in read_jsonl(out / "observations.jsonl") if o["type"] == "figures"]
     assert [f["repeat_visits"] for f in figs] == [2, 0, 4] and figs[0]["repeat_visits_estimated"]

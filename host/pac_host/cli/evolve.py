@@ -11,6 +11,7 @@ from pac_host import limits
 from pac_host.cli.link_options import ask, confirm, emulator_options, given, link_options
 from pac_host.cli.options import (
     Bounded,
+    learning_options,
     profile_option,
     profile_pal,
     search_evaluations_option,
@@ -19,6 +20,7 @@ from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
 from pac_host.model.table import BUILTIN
 from pac_host.robot.connect import connect
+from pac_host.robot.observers import ManualObserver
 from pac_host.robot.recovery import describe_counts
 
 
@@ -48,17 +50,19 @@ from pac_host.robot.recovery import describe_counts
               type=Bounded(limits.CGA_POPULATION))
 @click.option("--model-population", default=64, show_default=True,
               type=Bounded(limits.MODEL_POPULATION))
-@click.option("--model-generations", default=40, show_default=True,
-              type=Bounded(limits.MODEL_GENERATIONS),
-              help="Model GA generations per punctuation.")
+@click.option("--model-generations", default=None, type=Bounded(limits.MODEL_GENERATIONS),
+              help="Model GA generations per punctuation [default: 40 with --correction ga, "
+                   "0 with fit: the fitted table alone]")
 @click.option("--initial-generations", default=200, show_default=True,
               type=Bounded(limits.GENERATIONS),
               help="CGA generations on the model before the first test.")
+@learning_options
 @profile_option()
 @search_evaluations_option()
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
-               profile, search_evaluations, port, observer_spec, placer, **sim) -> None:
+               correction, structure, tests, operational, profile, search_evaluations, port,
+               observer_spec, placer, **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
     Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
@@ -94,18 +98,27 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         raise InputError("--out DIR is required (or --resume DIR)")
     else:
         root = out_dir
-        anytime = profile_pal(profile, search_evaluations)
-        cfg = EvolveConfig(seed=seed, method=method, model_fitness=model_fitness,
-                           search=anytime.search, search_evaluations=anytime.search_evaluations,
+        learn = profile_pal(profile, search_evaluations, model_generations,
+                            dict(model_fitness=model_fitness, correction=correction,
+                                 structure=structure, tests=tests, operational=operational))
+        cfg = EvolveConfig(seed=seed, method=method, model_fitness=learn.model_fitness,
+                           search=learn.search, search_evaluations=learn.search_evaluations,
                            generations=generations, interval=interval,
                            model_generations=model_generations, cga_population=cga_population,
                            model_population=model_population, budget=budget,
                            initial_generations=initial_generations,
-                           model=_spec(model_spec), robot=_robot(port, observer_spec, sim))
+                           model=_spec(model_spec), robot=_robot(port, observer_spec, sim),
+                           correction=learn.correction, structure=learn.structure,
+                           tests=learn.tests, operational=learn.operational)
         cfg.check()
     emu = emulator_options(sim, port)
     with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:
         click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
+        if resume_dir is None and isinstance(conn.observer, ManualObserver) and cfg.needs_paths():
+            cfg = cfg.for_counts_only()
+            click.echo("the observer reports coverage counts only, not paths: using the "
+                       "paper's model GA with its six coverage differences "
+                       "(--correction ga --model-fitness coverage)")
 
         def show(rec: dict) -> None:
             figs = "/".join(str(o["fitness"]) for o in rec["observed"])

@@ -13,6 +13,7 @@ from pac_host.cli.options import (
     Bounded,
     effect_option,
     effects_module_option,
+    learning_options,
     load_with_effects,
     profile_option,
     profile_pal,
@@ -43,7 +44,9 @@ from pac_host.plots import experiment_plots
 @click.option("--seed", "base_seed", default=0, show_default=True, type=int,
               help="Base seed: the whole experiment is a function of it.")
 @click.option("--actual", "actual_spec", default="shifted", show_default=True,
-              metavar="measured|shifted|FILE", help="The simulated actual robot's table.")
+              metavar="measured|shifted|FILE",
+              help="The simulated actual robot: a built-in table or a pac-gait-table/1 file "
+                   "(its effects included).")
 @effect_option()
 @effects_module_option()
 @click.option("--model", "model_spec", default="measured", show_default=True,
@@ -65,13 +68,22 @@ from pac_host.plots import experiment_plots
 @click.option("--optimum-evaluations", default=5_000_000, show_default=True,
               type=Bounded(limits.EVALUATIONS),
               help="Evaluations of each optimum run (`optimize` chains; default profile).")
+@click.option("--best-known", type=int, default=None,
+              help="The best coverage fitness known on the actual robot (verified with "
+                   "`pac-host simulate`); punctuations to the target count against the higher "
+                   "of it and the experiment's own optimum.")
+@click.option("--model-generations", default=None, type=Bounded(limits.MODEL_GENERATIONS),
+              help="Model GA generations per punctuation [default: 40 with --correction ga, "
+                   "0 with fit: the fitted table alone]")
+@learning_options
 @profile_option()
 @search_evaluations_option()
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 @scheduler_options
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
-                   optimum_runs, optimum_generations, optimum_evaluations, profile,
+                   optimum_runs, optimum_generations, optimum_evaluations, best_known,
+                   model_generations, correction, structure, tests, operational, profile,
                    search_evaluations, resume, scheduler, connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
@@ -97,8 +109,11 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         optimum_runs=optimum_runs, optimum_generations=optimum_generations,
         optimum_search="cga" if profile == "paper" else "optimize",
         optimum_evaluations=optimum_evaluations,
-        pal=profile_pal(profile, search_evaluations, budget=check_budget(budget),
-                        model_fitness=model_fitness),
+        best_known=best_known,
+        pal=profile_pal(profile, search_evaluations, model_generations,
+                        dict(model_fitness=model_fitness, correction=correction,
+                             structure=structure, tests=tests, operational=operational),
+                        budget=check_budget(budget)),
     )
     actual = load_with_effects(actual_spec, effect_specs)
     model = resolve_table(model_spec)
@@ -128,6 +143,16 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         click.echo(f"reached optimum, Fisher exact p = {t['reached_optimum_fisher_exact_p']:.4g}; "
                    f"final coverage, Wilcoxon p = {t['final_coverage_wilcoxon']['p_value']:.4g}; "
                    f"mean coverage, Wilcoxon p = {t['mean_coverage_wilcoxon']['p_value']:.4g}")
+    rt = summary["robot_time"]
+    click.echo(f"best known {rt['best_known']}; target {rt['target']:.0%} of it")
+    for m, s in rt["methods"].items():
+        med = s["median_punctuations_to_target"]
+        click.echo(f"{m:>8}: reached the target on {s['reached_target']}/{s['seeds']} seeds, "
+                   f"median {med if med is not None else 'not reached'} punctuations"
+                   + (f" ({s['median_robot_hours_to_target']:.1f} robot hours)"
+                      if s["median_robot_hours_to_target"] is not None else "")
+                   + f"; ended at {rt['final_target']:.0%} on {s['ended_at_final_target']}/"
+                   f"{s['seeds']}; {s['robot_hours_per_run']:.1f} robot hours per run")
     click.echo(f"summary: {out_dir / 'summary.json'}")
     click.echo("plots: " + ", ".join(str(p) for p in plots))
 

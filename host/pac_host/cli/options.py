@@ -98,18 +98,57 @@ def search_evaluations_option():
              "overrides the profile's).")
 
 
-def profile_pal(profile: str, search_evaluations: int | None, **fields):
-    """The PAL settings of a profile, with the command's own settings on top."""
+def profile_pal(profile: str, search_evaluations: int | None, model_generations: int | None,
+                options: dict, **fields):
+    """The PAL settings of a profile: ``fields`` under it, the profile's overrides, then those
+    of ``options`` typed on the command line (the rest keep the profile's values), then the
+    search budget and the model GA generations (by the correction unless given)."""
     from dataclasses import replace
 
     from pac_host import profiles
-    from pac_host.pal import PALConfig
+    from pac_host.pal import PALConfig, model_generations_for
 
     cfg = profiles.apply(profile, replace(PALConfig(), **fields))
+    src = click.get_current_context().get_parameter_source
+    typed = {k: v for k, v in options.items()
+             if getattr(src(k), "name", "") in ("COMMANDLINE", "ENVIRONMENT")}
+    cfg = replace(cfg, **typed)
     if search_evaluations is not None:
         if cfg.search == "cga":
             raise InputError("--search-evaluations needs an anytime profile, not "
                              f"--profile {profile}")
         cfg = replace(cfg, search_evaluations=search_evaluations)
+    if model_generations is not None or "model_generations" not in profiles.PROFILES[profile]:
+        cfg = replace(cfg, model_generations=model_generations_for(cfg.correction,
+                                                                   model_generations))
     cfg.check()
     return cfg
+def learning_options(f):
+    """How PAL learns the robot: the model correction, the tests, the operational rule
+    (defaults: :class:`pac_host.pal.PALConfig`'s; ``--correction ga --tests paper
+    --operational best --model-fitness coverage`` is the paper's method)."""
+    from pac_host import model_fit, pal, test_selection
+
+    d = pal.PALConfig()
+    opts = [
+        click.option("--correction", default=d.correction, show_default=True,
+                     type=click.Choice(pal.CORRECTIONS),
+                     help="ga: the model GA alone (the paper); fit: the whole table fitted to "
+                          "every observed step (effects of the library, then rows weighted by "
+                          "their evidence), then --model-generations of the model GA on top."),
+        click.option("--structure", default=d.structure, show_default=True,
+                     type=click.Choice(model_fit.STRUCTURES),
+                     help="With --correction fit: fit the effects library (effects) or only "
+                          "the rows (none)."),
+        click.option("--tests", default=d.tests, show_default=True,
+                     type=click.Choice(test_selection.CHOICES),
+                     help="paper: the best turn cycle and two perturbations; informative: the "
+                          "best and the two candidates the models disagree on most."),
+        click.option("--operational", default=d.operational, show_default=True,
+                     type=click.Choice(pal.OPERATIONAL),
+                     help="best: only the CGA's best may replace the operational turn cycle "
+                          "(the paper); tested: any tested turn cycle that did better."),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f

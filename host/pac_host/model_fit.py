@@ -1,0 +1,280 @@
+"""Whole-table model correction from observed steps: structure first, then rows by evidence.
+
+PAL's model GA corrects only the gait cycles the tests used; every other row stays as wrong as
+it started. This module corrects the whole table from every step observed so far, in two layers:
+
+1. **Structure.** The effects library of DESIGN.md section 3 is fitted to the observed runs
+   with the gap diagnosis (:func:`pac_host.diagnose.diagnose`: forward selection judged on
+   held-out runs). An effect seen on the used rows (a turn shift, a turn scale, a yaw bias)
+   moves every row. Table-level effects are folded into the rows; sequence and world effects
+   (transition, battery sag, floor slope) stay effects of the model.
+2. **Rows by evidence.** What the structure leaves is a per-row offset, estimated by Bayesian
+   linear regression (ridge): the model's predicted step is linear in the rows for fixed
+   sequence effects, so each observed step is one linear equation in the offsets. The prior
+   (offsets ~ N(0, tau^2) per component) is fitted to the data (empirical Bayes: the spread of
+   the offsets of rows with strong evidence), so on a robot the structure explains, unused rows
+   stay at the structure, and on a robot with independent row errors they stay uncertain.
+
+The result is a Gaussian posterior over the table: a mean (the CGA's model), a covariance per
+component, and the evidence (observed steps) of each row. Samples of it are a population of
+models whose disagreement says which tests would teach most (:mod:`pac_host.test_selection`).
+
+>>> import numpy as np
+>>> from pac_host.model import measured_table, shifted_table
+>>> from pac_host.pal import SimulatedRobot
+>>> tests = np.array([[[12, 20], [3, 8], [19, 6]]])
+>>> res = SimulatedRobot(shifted_table()).run_tests(tests)
+>>> obs = [Observed(expand_ids(tests[0], 200), res[0].poses)]
+>>> post = correct(measured_table(), obs, np.random.default_rng(0))
+>>> post.evidence[[3, 12, 19, 5]].tolist()   # steps seen per row; row 5 was never used
+[48, 120, 32, 0]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pac_host.coverage import expand
+from pac_host.diagnose import Run, diagnose, split_runs
+from pac_host.diagnose.residuals import batch_of, predicted_moves, step_residuals
+from pac_host.errors import InputError
+from pac_host.model.effects import EFFECT_SPECS, Effect, effective_rows
+from pac_host.model.table import N_IDS, GaitTable
+from pac_host.model_ga import DEFAULT_SCALE
+
+STRUCTURES = ("none", "effects")
+MIN_RUNS_FOR_EFFECTS = 2  # the diagnosis holds whole runs out: it needs at least two
+STRUCTURE_RUNS = 9  # the effects are fitted on the latest runs (three punctuations): the
+# diagnosis's cost grows with the steps, and three punctuations hold 600 steps
+HOLDOUT_FRACTION = 0.3
+MIN_ROWS_SPLIT = 4  # a table-level effect is judged on held-out rows: at least 3 + 1 rows
+MIN_ROWS_FOR_PRIOR = 4  # rows with strong evidence needed to fit the prior's spread
+STRONG_EVIDENCE = 10  # steps for a row's offset to count in the prior's spread
+TAU_FLOOR = 0.02  # the prior's spread never falls below this share of DEFAULT_SCALE
+SIGMA_FLOOR = 1e-3  # smallest step noise used (noise-free simulated robots)
+
+
+@dataclass(frozen=True)
+class Observed:
+    """One observed test: the gait ids executed and the observed poses (start pose first)."""
+
+    gait_ids: np.ndarray  # (n,)
+    poses: np.ndarray  # (n + 1, 3)
+    cycles_since_power_on: int = 0
+
+
+def expand_ids(turn_cycle: np.ndarray, budget: int) -> np.ndarray:
+    """The gait ids a turn cycle executes in ``budget`` gait cycles (empty if it stands still)."""
+    ids, still = expand(np.asarray(turn_cycle)[None], budget)
+    return ids[0] if not still[0] else ids[0, :0]
+
+
+@dataclass(frozen=True)
+class Posterior:
+    """A Gaussian belief about the robot's table: mean rows, per-component covariance of the
+    rows' offsets from the structure, evidence per row, and the model's effects."""
+
+    mean: np.ndarray  # (32, 3)
+    cov: np.ndarray  # (3, 32, 32): per component F, T, dH
+    evidence: np.ndarray  # (32,) observed steps per row
+    effects: tuple[Effect, ...]  # sequence and world effects the model keeps
+    selected: tuple[Effect, ...]  # every effect the structure fit selected
+    tau: np.ndarray  # (3,) the prior's spread of row offsets
+    sigma: np.ndarray  # (3,) step noise per component
+
+    @property
+    def sd(self) -> np.ndarray:
+        """Posterior standard deviation of each row and component (32, 3)."""
+        return np.sqrt(np.stack([np.diag(c) for c in self.cov], axis=1))
+
+    def sample(self, size: int, rng: np.random.Generator,
+               rows: np.ndarray | None = None) -> np.ndarray:
+        """``size`` tables drawn from the posterior (model 0 is the mean). With ``rows``, only
+        those rows are drawn (from their joint conditional); the others stay at the mean."""
+        out = np.broadcast_to(self.mean, (size, N_IDS, 3)).copy()
+        idx = np.arange(N_IDS) if rows is None else np.asarray(rows, dtype=np.int64)
+        if size <= 1 or len(idx) == 0:
+            return out
+        z = rng.normal(size=(size - 1, len(idx), 3))
+        for c in range(3):
+            cov = self.cov[c][np.ix_(idx, idx)]
+            chol = np.linalg.cholesky(cov + 1e-12 * np.eye(len(idx)))
+            out[1:, idx, c] += z[..., c] @ chol.T
+        return out
+
+
+def _runs(observed: Sequence[Observed]) -> list[Run]:
+    return [Run(f"t{i}", np.asarray(o.poses[0], dtype=np.float64), np.asarray(o.gait_ids),
+                np.asarray(o.poses[1:], dtype=np.float64), int(o.cycles_since_power_on))
+            for i, o in enumerate(observed) if len(o.gait_ids) > 0]
+
+
+def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
+                  ) -> tuple[Effect, ...]:
+    """Effects of the library the latest runs show on top of ``base`` (none before two runs).
+
+    Table-level effects must carry over to rows no test used, so they are judged by held-out
+    rows, not held-out runs (the three tests of a punctuation share their rows): the runs are
+    cut into stretches of one repeated gait cycle and the stretches of about 30% of the rows
+    are held out. Then, so that wrong rows do not pass for a sequence or world effect, those
+    effects are selected on whole runs of the table whose used rows are fitted freely.
+    """
+    runs = list(runs)[-STRUCTURE_RUNS:]
+    if len(runs) < MIN_RUNS_FOR_EFFECTS:
+        return ()
+    have = {e.name for e in base.effects}
+    table_lib = [n for n, sp in EFFECT_SPECS.items() if sp.stage == "table" and n not in have]
+    seq_lib = [n for n, sp in EFFECT_SPECS.items() if sp.stage != "table" and n not in have]
+    found: tuple[Effect, ...] = ()
+    fit_s, hold_s = _split_by_rows(_stretches(runs), rng)
+    if table_lib and fit_s and hold_s:
+        found = tuple(diagnose(base, fit_s, hold_s, rng, table_lib).selected)
+    if not seq_lib:
+        return found
+    table_fx, seq_fx = _split_effects(tuple(base.effects) + found)
+    fit, hold = split_runs(runs, HOLDOUT_FRACTION, rng)
+    free = _rows_only(GaitTable(effective_rows(base.rows, table_fx), (), base.name), fit, seq_fx)
+    more = diagnose(free, fit, hold, rng, seq_lib).selected
+    batch = batch_of(runs)
+    keep = [e for e in more if _moves_anything(free, batch, e)]
+    return found + tuple(keep)
+
+
+def _moves_anything(table: GaitTable, batch, effect: Effect) -> bool:
+    """False for an effect fitted to nothing (noise-free runs let a null effect through)."""
+    a = predicted_moves(table.rows, batch, table.effects)
+    b = predicted_moves(table.rows, batch, tuple(table.effects) + (effect,))
+    return bool(np.abs(a - b).max() > 1e-9)
+
+
+def _stretches(runs: Sequence[Run]) -> list[Run]:
+    """Each stretch of one gait cycle repeated, as a run of its own; the first step after a
+    change of gait is left out (a transition would blend it with the gait before)."""
+    out = []
+    for r in runs:
+        ids, poses = r.gait_cycles, r.all_poses()
+        start = 0
+        for i in range(1, len(ids) + 1):
+            if i < len(ids) and ids[i] == ids[start]:
+                continue
+            lo = start + (start > 0)
+            if i - lo >= 2:
+                out.append(Run(f"{r.run_id}s{lo}", poses[lo], ids[lo:i], poses[lo + 1: i + 1],
+                               r.cycles_since_power_on + lo))
+            start = i
+    return out
+
+
+def _split_by_rows(stretches: list[Run], rng: np.random.Generator
+                   ) -> tuple[list[Run], list[Run]]:
+    """(fitting, held-out) stretches, about ``HOLDOUT_FRACTION`` of the rows held out; both
+    empty when fewer than ``MIN_ROWS_SPLIT`` rows were seen."""
+    rows = np.unique([int(s.gait_cycles[0]) for s in stretches]) if stretches else []
+    if len(rows) < MIN_ROWS_SPLIT:
+        return [], []
+    k = max(1, round(HOLDOUT_FRACTION * len(rows)))
+    hold = set(rng.permutation(rows)[:k].tolist())
+    return ([s for s in stretches if int(s.gait_cycles[0]) not in hold],
+            [s for s in stretches if int(s.gait_cycles[0]) in hold])
+
+
+def _rows_only(base: GaitTable, runs: Sequence[Run], seq_fx: Sequence[Effect]) -> GaitTable:
+    """``base`` (no table-level effects) with each row the runs use set to its least-squares
+    fit to their steps under ``seq_fx``, which the result keeps."""
+    rows = base.rows
+    batch = batch_of(runs)
+    mask = batch.mask.ravel()
+    resid = step_residuals(rows, batch, seq_fx).reshape(-1, 3)[mask]
+    design = _design(batch, seq_fx)[mask]
+    used = design.any(axis=0)
+    rows = rows.copy()
+    rows[used] += np.linalg.pinv(design[:, used]) @ resid
+    return GaitTable(rows, tuple(seq_fx), base.name)
+
+
+def _split_effects(effects: Sequence[Effect]) -> tuple[list[Effect], list[Effect]]:
+    table = [e for e in effects if EFFECT_SPECS[e.name].stage == "table"]
+    return table, [e for e in effects if EFFECT_SPECS[e.name].stage != "table"]
+
+
+def correct(
+    base: GaitTable,
+    observed: Sequence[Observed],
+    rng: np.random.Generator,
+    structure: str = "effects",
+    prior_sd: Sequence[float] = DEFAULT_SCALE,
+) -> Posterior:
+    """The posterior over the table given every observed test (see the module docstring).
+
+    ``structure`` "none" skips the effects fit (rows by evidence around ``base`` alone).
+    """
+    if structure not in STRUCTURES:
+        raise InputError(f"unknown structure {structure!r}; use one of {', '.join(STRUCTURES)}")
+    runs = _runs(observed)
+    selected = fit_structure(base, runs, rng) if structure == "effects" else ()
+    table_fx, seq_fx = _split_effects(tuple(base.effects) + selected)
+    struct_rows = effective_rows(base.rows, table_fx)
+    prior = np.asarray(prior_sd, dtype=np.float64)
+    if not runs:
+        cov = np.stack([np.eye(N_IDS) * s * s for s in prior])
+        return Posterior(struct_rows, cov, np.zeros(N_IDS, dtype=np.int64), tuple(seq_fx),
+                         selected, prior, np.full(3, np.nan))
+    batch = batch_of(runs)
+    mask = batch.mask.ravel()
+    resid = step_residuals(struct_rows, batch, seq_fx).reshape(-1, 3)[mask]
+    design = _design(batch, seq_fx)[mask]  # (steps, 32)
+    evidence = np.bincount(batch.ids.ravel()[mask], minlength=N_IDS)
+    sigma, tau, mean, cov = _ridge(design, resid, evidence, prior)
+    return Posterior(struct_rows + mean, cov, evidence, tuple(seq_fx), selected, tau, sigma)
+
+
+def _design(batch, effects: Sequence[Effect]) -> np.ndarray:
+    """d(predicted step) / d(row g), the same for F, T and dH: (R * N, 32).
+
+    For fixed sequence effects the prediction is linear in the rows (transition blends two
+    rows, battery sag scales one), so unit tables give the coefficients exactly.
+    """
+    if not effects:  # each step is its own row: one-hot
+        return (batch.ids.reshape(-1, 1) == np.arange(N_IDS)).astype(np.float64)
+    zero = predicted_moves(np.zeros((N_IDS, 3)), batch, effects)[..., 0]
+    cols = []
+    for g in range(N_IDS):
+        unit = np.zeros((N_IDS, 3))
+        unit[g] = 1.0
+        cols.append((predicted_moves(unit, batch, effects)[..., 0] - zero).ravel())
+    return np.stack(cols, axis=1)
+
+
+def _ridge(design: np.ndarray, resid: np.ndarray, evidence: np.ndarray, prior: np.ndarray):
+    """Per component: noise sd, prior spread (empirical Bayes), posterior mean and covariance
+    of the 32 row offsets."""
+    gram = design.T @ design
+    used = evidence > 0
+    strong = evidence >= STRONG_EVIDENCE
+    sigma, tau = np.empty(3), np.empty(3)
+    means, covs = np.zeros((N_IDS, 3)), np.empty((3, N_IDS, N_IDS))
+    for c in range(3):
+        # least squares on the used rows alone: the offsets the data say, and the noise left
+        sub = np.ix_(used, used)
+        ls = np.linalg.pinv(gram[sub]) @ (design[:, used].T @ resid[:, c])
+        rss = float(np.sum((resid[:, c] - design[:, used] @ ls) ** 2))
+        dof = max(len(resid) - int(used.sum()), 1)
+        sigma[c] = max(np.sqrt(rss / dof), SIGMA_FLOOR)
+        off = np.zeros(N_IDS)
+        off[used] = ls
+        if strong.sum() >= MIN_ROWS_FOR_PRIOR:
+            # spread of true offsets: observed spread less what the noise adds
+            noise_var = sigma[c] ** 2 * np.diag(np.linalg.pinv(gram[sub]))
+            strong_in_used = strong[used]
+            spread = np.mean(off[strong] ** 2) - np.mean(noise_var[strong_in_used])
+            tau[c] = max(np.sqrt(max(spread, 0.0)), TAU_FLOOR * prior[c])
+        else:
+            tau[c] = prior[c]
+        prec = gram / sigma[c] ** 2 + np.eye(N_IDS) / tau[c] ** 2
+        covs[c] = np.linalg.inv(prec)
+        covs[c] = 0.5 * (covs[c] + covs[c].T)
+        means[:, c] = covs[c] @ (design.T @ resid[:, c]) / sigma[c] ** 2
+    return sigma, tau, means, covs

@@ -1,0 +1,95 @@
+"""Which turn cycles the robot tests: the paper's perturbations, or tests that teach.
+
+The paper tests the CGA's best turn cycle and two perturbations of it: tests chosen for
+coverage, not for what they teach about the model. The ``informative`` choice follows Bongard
+and Lipson's estimation-exploration algorithm: among candidate turn cycles near the best (the
+paper's two perturbations and the best distinct turn cycles of the CGA's population), run the
+ones on which the population of models disagrees most about the coverage the robot will reach.
+Ties (models that agree, e.g. early on) go to the test that uses rows with the least evidence:
+the most posterior variance over the steps it would walk.
+
+The best turn cycle itself is always test 0: it is the one the robot's operational solution is
+judged by.
+
+>>> import numpy as np
+>>> from pac_host.model import measured_table
+>>> from pac_host.model_ga import perturbed_population
+>>> rng = np.random.default_rng(0)
+>>> models = perturbed_population(measured_table().rows, 8, rng)
+>>> pop = np.array([[[12, 20], [3, 8]], [[12, 20], [3, 8]], [[12, 5], [20, 9]],
+...                 [[26, 30], [4, 12]]])
+>>> distinct_candidates(pop, 3).shape
+(2, 2, 2)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pac_host.coverage import expand, simulate
+
+CHOICES = ("paper", "informative")
+DEFAULT_CANDIDATES = 16  # distinct turn cycles from the top of the CGA's population
+
+
+def distinct_candidates(cga_pop: np.ndarray, n: int) -> np.ndarray:
+    """Up to ``n`` distinct turn cycles from the population (best first), the best excluded."""
+    out, seen = [], {cga_pop[0].tobytes()}
+    for tc in cga_pop[1:]:
+        key = tc.tobytes()
+        if key not in seen:
+            seen.add(key)
+            out.append(tc)
+            if len(out) == n:
+                break
+    return np.array(out).reshape((len(out),) + cga_pop.shape[1:])
+
+
+def disagreement(models: np.ndarray, candidates: np.ndarray, budget: int, effects=()
+                 ) -> np.ndarray:
+    """Standard deviation over the models of each candidate's predicted coverage fitness."""
+    cov = simulate(models, candidates, budget, effects)
+    return cov.fitness.astype(np.float64).std(axis=0)
+
+
+def row_uncertainty(candidates: np.ndarray, row_var: np.ndarray, budget: int) -> np.ndarray:
+    """Posterior variance summed over the distinct rows each candidate walks (rows it never
+    reaches in ``budget`` gait cycles do not count)."""
+    ids, still = expand(candidates, budget)
+    out = np.zeros(len(candidates))
+    for k in range(len(candidates)):
+        if not still[k]:
+            out[k] = row_var[np.unique(ids[k])].sum()
+    return out
+
+
+def choose(
+    best: np.ndarray,
+    perturbed: np.ndarray,
+    cga_pop: np.ndarray,
+    models: np.ndarray,
+    row_var: np.ndarray,
+    budget: int,
+    effects=(),
+    n_tests: int = 2,
+    n_candidates: int = DEFAULT_CANDIDATES,
+) -> np.ndarray:
+    """The best turn cycle and the ``n_tests`` candidates the models disagree on most.
+
+    ``perturbed`` are the paper's perturbations (candidates too); ``row_var`` (32,) is the
+    posterior variance of each row (summed over components), the tie-break.
+    """
+    cands = np.concatenate([perturbed, distinct_candidates(cga_pop, n_candidates)])
+    _, keep = np.unique(cands.reshape(len(cands), -1), axis=0, return_index=True)
+    keep = np.sort(keep)
+    keep = keep[[cands[k].tobytes() != best.tobytes() for k in keep]]
+    cands = cands[keep]
+    if len(cands) == 0:
+        return np.concatenate([best[None], perturbed])
+    spread = disagreement(models, cands, budget, effects)
+    unknown = row_uncertainty(cands, row_var, budget)
+    order = np.lexsort((-unknown, -spread))  # most disagreement first, then least evidence
+    picked = cands[order[:n_tests]]
+    while len(picked) < n_tests:  # too few distinct candidates: fall back on the paper's
+        picked = np.concatenate([picked, perturbed[len(picked) - n_tests:][:1]])
+    return np.concatenate([best[None], picked])
