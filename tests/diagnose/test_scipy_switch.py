@@ -91,3 +91,12 @@ def test_diagnoses_equal_the_former_ones(i):
         # p-values of fitted statistics: equal to the fit's own precision
         assert c["fit"]["p_lr"] == pytest.approx(rc["p_lr"], abs=1e-8)
         assert c["p_value"] == pytest.approx(rc["p_value"], abs=1e-8)
+
+
+def test_bootstrap_with_no_held_out_move_is_nan_without_a_warning():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lo, hi = stats.bootstrap_ratio_ci(np.zeros(3), np.zeros(3), np.random.default_rng(0))
+    assert np.isnan(lo) and np.isnan(hi)

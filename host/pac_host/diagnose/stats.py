@@ -7,6 +7,7 @@ normal under "no effect"); the tails and the bootstrap are SciPy's.
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 from scipy import stats as sps
@@ -43,8 +44,10 @@ def bootstrap_ratio_ci(
     if len(num) == 1:  # one held-out run: every resample is that run
         v = float(_ratio_shrink(np.asarray(num), np.asarray(den)))
         return (v, v)
-    res = sps.bootstrap((np.asarray(num, float), np.asarray(den, float)), _ratio_shrink,
-                        n_resamples=n_boot, paired=True, vectorized=True,
-                        confidence_level=level, method="percentile", rng=rng)
+    with warnings.catch_warnings():  # resamples with no held-out move: NaN, said by the result
+        warnings.simplefilter("ignore", sps.DegenerateDataWarning)
+        res = sps.bootstrap((np.asarray(num, float), np.asarray(den, float)), _ratio_shrink,
+                            n_resamples=n_boot, paired=True, vectorized=True,
+                            confidence_level=level, method="percentile", rng=rng)
     ci = res.confidence_interval
     return float(ci.low), float(ci.high)
