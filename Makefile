@@ -9,7 +9,7 @@ PYDIRS  := $(wildcard host protocol simulator tests bench)
 .PHONY: help venv test demo demo-evolve bench bench-diagnose lint sim sim-firmware clean firmware
 
 help:
-	@echo "make demo    the paper's experiment (short) and PAL over the serial link, on the built-in simulated robot"
+	@echo "make demo    the PAL experiment (short) and PAL over the serial link, on the built-in simulated robot"
 	@echo "make test    install into .venv and run the test suite"
 	@echo "make demo-evolve  PAL over the serial link against the built-in emulator (about a minute)"
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
