@@ -100,6 +100,15 @@ class LineSource:
         self._buf = b""
         self.eof = False
 
+    def _read(self) -> bytes | None:
+        """One read: the bytes ready (b"" at the end of the stream), or None if none were."""
+        try:
+            return os.read(self.fd, 65536)
+        except BlockingIOError:
+            return None
+        except OSError as e:
+            raise ObserverError(f"observer {self.name}: read failed: {e.strerror}") from None
+
     def readline(self, timeout: float) -> str | None:
         """The next line, or None if none completes within ``timeout``; raises on EOF."""
         deadline = time.monotonic() + timeout
@@ -110,12 +119,9 @@ class LineSource:
             r, _, _ = select.select([self.fd], [], [], rem)
             if not r:
                 return None
-            try:
-                chunk = os.read(self.fd, 65536)
-            except BlockingIOError:
+            chunk = self._read()
+            if chunk is None:
                 continue
-            except OSError as e:
-                raise ObserverError(f"observer {self.name}: read failed: {e.strerror}") from None
             if not chunk:
                 self.eof = True
                 raise ObserverError(f"observer {self.name}: the stream closed")
@@ -127,14 +133,9 @@ class LineSource:
         """Forget the whole lines already received (a partial last line is kept: its end is
         still coming); returns how many."""
         while select.select([self.fd], [], [], 0)[0]:
-            try:
-                chunk = os.read(self.fd, 65536)
-            except BlockingIOError:
-                break
-            except OSError as e:
-                raise ObserverError(f"observer {self.name}: read failed: {e.strerror}") from None
+            chunk = self._read()
             if not chunk:
-                break  # end of stream: readline reports it
+                break  # nothing ready, or the end of stream: readline reports that
             self._buf += chunk
         cut = self._buf.rfind(b"\n") + 1
         n = self._buf[:cut].count(b"\n")
