@@ -14,7 +14,6 @@ Set ``PAC_KERNEL=numpy`` in the environment to run everything in numpy.
 from __future__ import annotations
 
 import importlib.util
-import math
 import os
 
 import numpy as np
@@ -32,29 +31,39 @@ _HALF_BODY = 6.0
 
 def _block(x: float, y: float, c: float, s: float) -> int:
     """Block detected at position (x, y) with heading cosine ``c`` and sine ``s``: as
-    ``coverage._detect``, one pose at a time."""
+    ``coverage._detect``, one pose at a time (for a non-negative quotient, truncation is the
+    floor)."""
     hx = abs(c) * _HALF_BODY
-    hy = abs(s) * _HALF_BODY
     lo = x - hx
-    col = math.floor(lo / _BLOCK)
-    if lo < 0 or (x + hx) - col * _BLOCK >= _BLOCK or col >= _COLUMNS:
+    if lo < 0:
         return -1
+    col = int(lo / _BLOCK)
+    if (x + hx) - col * _BLOCK >= _BLOCK or col >= _COLUMNS:
+        return -1
+    hy = abs(s) * _HALF_BODY
     lo = y - hy
-    row = math.floor(lo / _BLOCK)
-    if lo < 0 or (y + hy) - row * _BLOCK >= _BLOCK:
+    if lo < 0:
         return -1
-    return int(row * _COLUMNS + col)
+    row = int(lo / _BLOCK)
+    if (y + hy) - row * _BLOCK >= _BLOCK:
+        return -1
+    return row * _COLUMNS + col
 
 
-def _figures(blocks: np.ndarray, n: int, out: np.ndarray, k: int) -> None:
+def _figures(blocks: np.ndarray, n: int, visits: np.ndarray, out: np.ndarray, k: int
+             ) -> np.ndarray:
     """(covered, covered once, fitness, repeat visits) of one path's detected blocks into
-    ``out[:, k]``: as ``coverage.figures_from_blocks``."""
+    ``out[:, k]``: as ``coverage.figures_from_blocks``. ``visits`` is a scratch buffer, grown
+    when a path reaches further; returns it."""
     top = -1
     for t in range(n):
         if blocks[t] > top:
             top = blocks[t]
     n_rows = top // _COLUMNS + 2
-    visits = np.zeros(n_rows * _COLUMNS, dtype=np.int64)
+    if visits.shape[0] < n_rows * _COLUMNS:
+        visits = np.zeros(2 * n_rows * _COLUMNS, dtype=np.int64)
+    else:
+        visits[: n_rows * _COLUMNS] = 0
     prev = -1
     for t in range(n):
         b = blocks[t]
@@ -79,28 +88,71 @@ def _figures(blocks: np.ndarray, n: int, out: np.ndarray, k: int) -> None:
     out[1, k] = once
     out[2, k] = fitness
     out[3, k] = total - covered
+    return visits
+
+
+def _shared_steps(genes: np.ndarray, budget: int) -> int:
+    """Gait cycles at the start that every turn cycle of the batch walks alike: those of the
+    genes before the first gene in which any two differ (in the loop's first pass)."""
+    n_genes, n_slots = genes.shape[0], genes.shape[1]
+    steps = 0
+    for j in range(n_slots):
+        for k in range(1, n_genes):
+            if genes[k, j, 0] != genes[0, j, 0] or genes[k, j, 1] != genes[0, j, 1]:
+                return min(steps, budget)
+        steps += genes[0, j, 1]
+    return min(steps, budget)
 
 
 def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.ndarray,
                  q0: complex, p0: complex, drift: complex, budget: int) -> np.ndarray:
     """Figures (4, n_tables * P) of turn cycles ``genes`` (P, G, 2) on tables whose moves are
-    ``rot`` and ``disp`` (n_tables * 32,): path k runs genes k % P on table k // P."""
+    ``rot`` and ``disp`` (n_tables * 32,): path k runs genes k % P on table k // P.
+
+    The gait cycles all turn cycles of the batch share at the start (a search's batch changes
+    one gene and keeps those before it) are walked once per table, not once per path."""
     n_genes = genes.shape[0]
     n_paths = n_tables * n_genes
     out = np.empty((4, n_paths), dtype=np.int64)
     blocks = np.empty(budget + 1, dtype=np.int64)
+    shared = np.empty(budget + 1, dtype=np.int64)
+    visits = np.zeros(64, dtype=np.int64)
+    s = _shared_steps(genes, budget)
+    qs = q0
+    ps = p0
+    js = 0
+    lefts = 0
     for k in range(n_paths):
         g = genes[k % n_genes]
         base = (k // n_genes) * 32
         loop = 0
         for j in range(g.shape[0]):
             loop += g[j, 1]
-        q = q0
-        p = p0
-        blocks[0] = _block(p.real, p.imag, q.real, q.imag)
-        j = 0
-        left = g[0, 1]
-        for t in range(1, budget + 1):
+        if k % n_genes == 0:  # walk the shared start on this table
+            q = q0
+            p = p0
+            shared[0] = _block(p.real, p.imag, q.real, q.imag)
+            j = 0
+            left = g[0, 1]
+            for t in range(1, s + 1):
+                while left == 0:
+                    j = (j + 1) % g.shape[0]
+                    left = g[j, 1]
+                left -= 1
+                r = rot[base + g[j, 0]]
+                d = disp[base + g[j, 0]]
+                step = d * q
+                q = q * r
+                p = p + (step + drift)
+                shared[t] = _block(p.real, p.imag, q.real, q.imag)
+            qs, ps, js, lefts = q, p, j, left
+        for t in range(s + 1):
+            blocks[t] = shared[t]
+        q = qs
+        p = ps
+        j = js
+        left = lefts if s > 0 else g[0, 1]
+        for t in range(s + 1, budget + 1):
             if loop == 0:  # a turn cycle without repetitions stands still
                 r = 1.0 + 0.0j
                 d = 0.0j
@@ -117,19 +169,20 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
             q = q * r
             p = p + (step + dr)
             blocks[t] = _block(p.real, p.imag, q.real, q.imag)
-        _figures(blocks, budget + 1, out, k)
+        visits = _figures(blocks, budget + 1, visits, out, k)
     return out
 
 
 def _compile():
     """The kernel compiled (cached on disk by numba between processes)."""
-    global _compiled, _block, _figures
+    global _compiled, _block, _figures, _shared_steps
     if _compiled is None:
         import numba
 
         opts = {"cache": True, "nogil": True}
         _block = numba.njit(**opts)(_block)
         _figures = numba.njit(**opts)(_figures)
+        _shared_steps = numba.njit(**opts)(_shared_steps)
         _compiled = numba.njit(**opts)(_score_paths)
     return _compiled
 
