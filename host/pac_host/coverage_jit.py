@@ -91,16 +91,20 @@ def _figures(blocks: np.ndarray, n: int, visits: np.ndarray, out: np.ndarray, k:
     return visits
 
 
-def _shared_steps(genes: np.ndarray, budget: int) -> int:
-    """Gait cycles at the start that every turn cycle of the batch walks alike: those of the
-    genes before the first gene in which any two differ (in the loop's first pass)."""
-    n_genes, n_slots = genes.shape[0], genes.shape[1]
+def _shared_steps(a: np.ndarray, b: np.ndarray, budget: int) -> int:
+    """Gait cycles at the start that turn cycles ``a`` and ``b`` (G, 2) walk alike: their equal
+    genes, then the shorter run of the first gene that differs, if its id is the same in both
+    (in the loop's first pass)."""
     steps = 0
-    for j in range(n_slots):
-        for k in range(1, n_genes):
-            if genes[k, j, 0] != genes[0, j, 0] or genes[k, j, 1] != genes[0, j, 1]:
-                return min(steps, budget)
-        steps += genes[0, j, 1]
+    for j in range(a.shape[0]):
+        if a[j, 0] == b[j, 0] and a[j, 1] == b[j, 1]:
+            steps += a[j, 1]
+            if steps >= budget:
+                return budget
+            continue
+        if a[j, 0] == b[j, 0]:
+            steps += min(a[j, 1], b[j, 1])
+        return min(steps, budget)
     return min(steps, budget)
 
 
@@ -109,49 +113,39 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
     """Figures (4, n_tables * P) of turn cycles ``genes`` (P, G, 2) on tables whose moves are
     ``rot`` and ``disp`` (n_tables * 32,): path k runs genes k % P on table k // P.
 
-    The gait cycles all turn cycles of the batch share at the start (a search's batch changes
-    one gene and keeps those before it) are walked once per table, not once per path."""
+    Each path starts where it parts from the path before it on the same table: the gait
+    cycles they walk alike are not walked again (a search's batch changes one gene and keeps
+    those before it, and lists a gene's repetitions in order, so most of each path is shared).
+    The pose and loop position after every gait cycle of the last path are kept for this."""
     n_genes = genes.shape[0]
     n_paths = n_tables * n_genes
     out = np.empty((4, n_paths), dtype=np.int64)
     blocks = np.empty(budget + 1, dtype=np.int64)
-    shared = np.empty(budget + 1, dtype=np.int64)
+    qs = np.empty(budget + 1, dtype=np.complex128)
+    ps = np.empty(budget + 1, dtype=np.complex128)
+    js = np.empty(budget + 1, dtype=np.int64)
+    used = np.empty(budget + 1, dtype=np.int64)  # repetitions of gene js[t] walked by t
     visits = np.zeros(64, dtype=np.int64)
-    s = _shared_steps(genes, budget)
-    qs = q0
-    ps = p0
-    js = 0
-    lefts = 0
+    blocks[0] = _block(p0.real, p0.imag, q0.real, q0.imag)
+    qs[0] = q0
+    ps[0] = p0
     for k in range(n_paths):
         g = genes[k % n_genes]
         base = (k // n_genes) * 32
         loop = 0
         for j in range(g.shape[0]):
             loop += g[j, 1]
-        if k % n_genes == 0:  # walk the shared start on this table
-            q = q0
-            p = p0
-            shared[0] = _block(p.real, p.imag, q.real, q.imag)
+        s = 0
+        if k % n_genes != 0:
+            s = _shared_steps(g, genes[k % n_genes - 1], budget)
+        q = qs[s]
+        p = ps[s]
+        if s == 0:
             j = 0
             left = g[0, 1]
-            for t in range(1, s + 1):
-                while left == 0:
-                    j = (j + 1) % g.shape[0]
-                    left = g[j, 1]
-                left -= 1
-                r = rot[base + g[j, 0]]
-                d = disp[base + g[j, 0]]
-                step = d * q
-                q = q * r
-                p = p + (step + drift)
-                shared[t] = _block(p.real, p.imag, q.real, q.imag)
-            qs, ps, js, lefts = q, p, j, left
-        for t in range(s + 1):
-            blocks[t] = shared[t]
-        q = qs
-        p = ps
-        j = js
-        left = lefts if s > 0 else g[0, 1]
+        else:
+            j = js[s]
+            left = g[j, 1] - used[s]
         for t in range(s + 1, budget + 1):
             if loop == 0:  # a turn cycle without repetitions stands still
                 r = 1.0 + 0.0j
@@ -169,6 +163,10 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
             q = q * r
             p = p + (step + dr)
             blocks[t] = _block(p.real, p.imag, q.real, q.imag)
+            qs[t] = q
+            ps[t] = p
+            js[t] = j
+            used[t] = g[j, 1] - left
         visits = _figures(blocks, budget + 1, visits, out, k)
     return out
 

@@ -64,20 +64,21 @@ def test_auto_uses_numpy_where_the_kernel_does_not_apply():
 
 @pytest.mark.parametrize("budget", [0, 5, 60, 200, 450])
 def test_kernel_equals_numpy_on_batches_that_share_their_first_genes(budget):
-    """A search's batch changes one gene and keeps those before it: the kernel walks the shared
-    start once. Batches that agree up to each gene, on one and on many tables, with drift."""
-    from pac_host.search.neighbours import neighbours
+    """A search's batch changes one gene and keeps those before it, its repetitions in order:
+    the kernel starts each path where it parts from the one before. Whole neighbourhoods of
+    each gene and paired repetition changes, on one and on many tables, with drift."""
+    from pac_host.search.neighbours import neighbours, pair_neighbours
 
     rng = np.random.default_rng(budget + 7)
     models = measured_table().rows + rng.normal(0, 0.6, (5, 32, 3))
     drift = [parse_effect("floor_slope:s=0.8,theta=200")]
     for x in _population(rng, 28)[[0, 8, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25]]:
         for j in range(9):
-            batch = neighbours(x, 10**6, only=j)[::37]
+            batch = neighbours(x, 10**6, only=j)
             if not len(batch):
                 continue
-            batch = np.concatenate([x[None], batch])
+            batch = np.concatenate([x[None], batch, pair_neighbours(x, 10**6)])
             _same(simulate(shifted_table().rows, batch, budget, kernel="numba"),
                   simulate(shifted_table().rows, batch, budget, kernel="numpy"))
-            _same(simulate(models, batch[:6], budget, drift, kernel="numba"),
-                  simulate(models, batch[:6], budget, drift, kernel="numpy"))
+            _same(simulate(models, batch[:70], budget, drift, kernel="numba"),
+                  simulate(models, batch[:70], budget, drift, kernel="numpy"))
