@@ -176,6 +176,7 @@ class PALState:
     operational_fitness: int | None
     base: GaitTable | None = None  # the starting model ("fit" corrects it from all evidence)
     observed: tuple = ()  # every observed test so far (model_fit.Observed), for "fit"
+    search: dict | None = None  # the anytime search carried on (search.local.Chain.to_json())
 
 
 def initial_state(
@@ -308,8 +309,11 @@ def punctuate(
     if search is not None:
         pop = search.pop
         record["search"] = search.record
+    carried = state.search
+    if search is not None:
+        carried = search.chain
     new = PALState(state.generation, pop, models, tuple(model_effects), operational,
-                   op_score, op_fit, state.base, observed)
+                   op_score, op_fit, state.base, observed, carried)
     return new, record
 
 
@@ -362,6 +366,7 @@ class _AnytimeSearch:
     def __init__(self, state: PALState, rng: np.random.Generator, cfg: PALConfig) -> None:
         self.state, self.rng, self.cfg = state, rng, cfg
         self.pop = state.cga_pop
+        self.chain = state.search
         self.record: dict = {}
         self.cancelled = False
 
@@ -372,10 +377,14 @@ class _AnytimeSearch:
     def __call__(self) -> None:
         from pac_host.search import anytime
 
-        self.pop, rec = anytime.advance(
+        from pac_host.search.local import Chain
+
+        carried = None if self.state.search is None else Chain.from_json(self.state.search)
+        self.pop, rec, chain = anytime.advance(
             self.state.models[0], self.state.cga_pop, self.cfg.search_evaluations, self.rng,
             self.cfg.budget, self.state.model_effects, self.cfg.search,
-            cancelled=lambda: self.cancelled)
+            cancelled=lambda: self.cancelled, chain=carried)
+        self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
 
 
@@ -435,8 +444,18 @@ def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
         "observed": [{"gait_ids": o.gait_ids.tolist(), "poses": o.poses.tolist(),
                       "cycles_since_power_on": o.cycles_since_power_on}
                      for o in state.observed],
+        "search": state.search,
         "rng": rng.bit_generator.state,
     }
+
+
+def _search_from_json(doc) -> dict | None:
+    """The carried search of a state document, checked (None: none carried)."""
+    if doc is None:
+        return None
+    from pac_host.search.local import Chain
+
+    return Chain.from_json(doc).to_json()
 
 
 def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
@@ -462,6 +481,7 @@ def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
                                      np.array(o["poses"], dtype=np.float64),
                                      int(o.get("cycles_since_power_on", 0)))
                   for o in doc.get("observed", [])),
+            _search_from_json(doc.get("search")),
         )
     except (KeyError, TypeError, ValueError) as e:
         raise InputError(f"PAL state is incomplete or malformed ({e})") from None

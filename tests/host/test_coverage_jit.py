@@ -72,7 +72,7 @@ def test_kernel_equals_numpy_on_batches_that_share_their_first_genes(budget):
     rng = np.random.default_rng(budget + 7)
     models = measured_table().rows + rng.normal(0, 0.6, (5, 32, 3))
     drift = [parse_effect("floor_slope:s=0.8,theta=200")]
-    for x in _population(rng, 28)[[0, 8, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25]]:
+    for x in _population(rng, 28)[[0, 8, 16, 17, 18, 19]]:
         for j in range(9):
             batch = neighbours(x, 10**6, only=j)
             if not len(batch):

@@ -134,3 +134,67 @@ def test_optimize_bad_input_is_one_line_and_exit_2(args, message):
     assert res.exit_code == 2, res.output
     lines = res.output.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], res.output
+
+
+def _count_restarts(monkeypatch) -> list:
+    from pac_host.search import local
+
+    calls = []
+    real = local.cga_start
+
+    def counted(objective, rng):
+        calls.append(objective.evaluations)
+        return real(objective, rng)
+
+    monkeypatch.setattr(local, "cga_start", counted)
+    return calls
+
+
+def test_a_chain_carried_across_budgets_restarts_when_it_stalls(monkeypatch):
+    """Anytime PAL hands the search a small budget per punctuation: the chain carries its
+    stall count from one budget to the next, so it restarts from a new basin once it stalls,
+    however the budget is cut; with endless patience it stays in its first."""
+    from pac_host.search.local import Chain
+
+    rows = shifted_table().rows
+    for patience, restarted in ((2, True), (10**6, False)):
+        calls = _count_restarts(monkeypatch)
+        chain, rng = Chain(), np.random.default_rng(3)
+        for _ in range(8):
+            objective = Objective(rows, limit=40_000)
+            chain.run(objective, rng, patience)
+            assert objective.evaluations == 40_000
+            assert chain.stale <= patience
+        assert (len(calls) > 1) == restarted, calls
+        back = Chain.from_json(json.loads(json.dumps(chain.to_json())))
+        assert back.stale == chain.stale
+        assert (back.x is None and chain.x is None) or (back.x == chain.x).all()
+
+
+def test_anytime_pal_carries_its_search_through_a_saved_state():
+    """The default profile's search is part of the state: a run saved after one punctuation
+    and resumed from the file is the same run as one never stopped."""
+    from dataclasses import replace
+
+    from pac_host import pal, profiles
+
+    cfg = replace(profiles.apply("default", pal.PALConfig(
+        cga_population=16, model_population=8, model_generations=2, generations=60,
+        interval=20)), search_evaluations=15_000)
+    robot = pal.SimulatedRobot(shifted_table())
+    rng = np.random.default_rng(4)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    whole = []
+    pal.run(state, robot, rng, cfg, lambda s, r: whole.append(r))
+
+    rng = np.random.default_rng(4)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    state, first = pal.punctuate(state, robot, rng, cfg)
+    saved = json.loads(json.dumps(pal.state_to_json(state, rng)))
+    assert saved["search"]["x"] is not None
+    state, rng = pal.state_from_json(saved)
+    state, _ = pal.advance_cga(state, cfg.interval, rng, cfg)
+    rest = []
+    pal.run(state, robot, rng, cfg, lambda s, r: rest.append(r))
+    assert [first] + rest == whole
+    assert all(r["search"]["evaluations"] == 15_000 for r in whole)

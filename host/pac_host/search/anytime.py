@@ -1,5 +1,8 @@
 """The search between two punctuations of anytime PAL: a budget of coverage evaluations on the
-current model, spent by iterated local search from the population's best turn cycle.
+current model, spent by a :class:`~pac_host.search.local.Chain` that PAL carries from one
+punctuation to the next (its current local optimum and how long it has stalled), so 25
+punctuations of a budget search about as far as one search of 25 budgets would: it restarts
+when it stalls, instead of staying in its first basin.
 
 The budget is counted in evaluations, not seconds, so a run is the same on any machine and
 whether or not the search overlaps the robot's tests.
@@ -13,29 +16,35 @@ import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET
 from pac_host.model.effects import Effect
-from pac_host.search.local import Objective, iterated_local_search
+from pac_host.search.local import Chain, Objective
 
 METHODS = ("ils",)
+PATIENCE = 50  # kicks without a higher score before the chain restarts (as optimize's)
 
 
 def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int, rng: np.random.Generator,
             budget: int = DEFAULT_BUDGET, effects: Sequence[Effect] = (), method: str = "ils",
-            cancelled: Callable[[], bool] | None = None) -> tuple[np.ndarray, dict]:
-    """Spend ``evaluations`` on improving the population's best turn cycle on model ``rows``.
+            cancelled: Callable[[], bool] | None = None,
+            chain: Chain | None = None) -> tuple[np.ndarray, dict, Chain]:
+    """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
-    ``pop`` (P, 9, 2) is sorted best first on this model. Returns the population with the best
-    turn cycle found in front (the others shifted down, duplicates of it dropped) and a record
-    of the search (evaluations, best score). ``cancelled`` is polled between batches: a
-    cancelled search stops early (its caller discards the result).
+    ``pop`` (P, 9, 2) is sorted best first on this model; ``chain`` is the search carried from
+    the last punctuation (None: a new chain from the population's best). Returns the population
+    with the best turn cycle found in front (the others shifted down, duplicates of it
+    dropped), a record of the search (evaluations, best score, restarts so far) and the chain
+    to carry on. ``cancelled`` is polled between batches: a cancelled search stops early (its
+    caller discards the result).
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
+    chain = Chain(pop[0].copy()) if chain is None else Chain(chain.x, chain.stale)
     objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled)
     if evaluations > 0:
-        iterated_local_search(pop[0], objective, rng)
+        chain.run(objective, rng, PATIENCE)
+    record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}
     if objective.best is None:
-        return pop, {"evaluations": objective.evaluations}
+        return pop, record, chain
     best = objective.best
     rest = pop[~(pop == best).all(axis=(1, 2))]
     out = np.concatenate([best[None], rest])[: len(pop)]
-    return out, {"evaluations": objective.evaluations, "best_score": objective.best_score}
+    return out, {**record, "best_score": objective.best_score}, chain

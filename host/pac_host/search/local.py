@@ -1,5 +1,6 @@
 """Local search for turn cycles: climb single-gene changes until none improves, and iterated
-local search (ILS), which kicks a local optimum by re-drawing two genes and climbs again.
+local search (ILS), which kicks a local optimum by re-drawing two genes and climbs again,
+restarted when it stalls (:class:`Chain`, which can stop and be carried on later).
 
 Every evaluation goes through the coverage simulator (:func:`pac_host.coverage.simulate`); an
 :class:`Objective` counts them, so a search can be given a budget in evaluations and stay
@@ -126,50 +127,68 @@ def kick(x: np.ndarray, rng: np.random.Generator, genes: int, budget: int) -> np
     return y
 
 
-def iterated_local_search(x: np.ndarray, objective: Objective, rng: np.random.Generator,
-                          kick_genes: int = 2, patience: int | None = None,
-                          score: int | None = None, first: bool = True) -> tuple[np.ndarray, int]:
-    """Climb from ``x``, then kick and climb again, moving to each new local optimum that
-    scores at least as high (plateaus are crossed). Stops after ``patience`` kicks in a row
-    without a higher score (None: never) or when the objective's budget runs out. Returns the
-    current local optimum; the best ever scored is ``objective.best``."""
-    try:
-        if score is None:
-            score = int(objective(x[None])[0])
-        x, score = climb(x, score, objective, rng if first else None)
-        stale = 0
-        while patience is None or stale < patience:
-            y = kick(x, rng, kick_genes, objective.budget)
-            y, s = climb(y, int(objective(y[None])[0]), objective, rng if first else None)
-            stale = 0 if s > score else stale + 1
-            if fitness_of_score(s) >= fitness_of_score(score):
-                x, score = y, s
-    except Exhausted:
-        pass
-    return x, score
-
-
 RESTART_POPULATION, RESTART_GENERATIONS = 64, 150  # the CGA run that starts each restart
+
+
+@dataclass
+class Chain:
+    """Iterated local search with restarts that can stop when its objective's budget runs out
+    and be carried on later, on the same model or a changed one (anytime PAL's search between
+    punctuations). It keeps its current local optimum ``x`` (None: start from a restart) and the
+    kicks ``stale`` since the score last rose; after ``patience`` such kicks it restarts from
+    the best of a fresh short CGA run (the CGA finds good regions cheaply; the local search then
+    gets much further from there than the CGA does). The best ever scored is the objective's.
+
+    >>> from pac_host.model import shifted_table
+    >>> objective = Objective(shifted_table().rows, limit=20_000)
+    >>> chain = Chain()
+    >>> chain.run(objective, np.random.default_rng(0), patience=50)
+    >>> objective.evaluations, fitness_of_score(objective.best_score) > 10
+    (20000, True)
+    """
+
+    x: np.ndarray | None = None
+    stale: int = 0
+
+    def run(self, objective: Objective, rng: np.random.Generator, patience: int,
+            kick_genes: int = 2) -> None:
+        """Search until the objective's budget or deadline is spent. A carried-on chain first
+        re-scores and climbs its local optimum on the objective's (maybe changed) model."""
+        try:
+            while True:
+                if self.x is None:
+                    x, score = cga_start(objective, rng)
+                    self.stale = 0
+                else:
+                    x, score = self.x, int(objective(self.x[None])[0])
+                x, score = climb(x, score, objective, rng)
+                self.x = x
+                while self.stale < patience:
+                    y = kick(x, rng, kick_genes, objective.budget)
+                    y, s = climb(y, int(objective(y[None])[0]), objective, rng)
+                    self.stale = 0 if s > score else self.stale + 1
+                    if fitness_of_score(s) >= fitness_of_score(score):  # plateaus are crossed
+                        x, score = y, s
+                        self.x = x
+                self.x = None
+        except Exhausted:
+            pass
+
+    def to_json(self) -> dict:
+        return {"x": None if self.x is None else self.x.tolist(), "stale": self.stale}
+
+    @classmethod
+    def from_json(cls, doc: dict) -> Chain:
+        x = doc.get("x")
+        return cls(None if x is None else np.array(x, dtype=np.int64), int(doc.get("stale", 0)))
 
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
              kick_genes: int = 2, start: np.ndarray | None = None) -> None:
-    """Iterated local search from ``start`` (or the best of a short CGA run), restarted from
-    the best of a fresh short CGA run whenever it stalls for ``patience`` kicks, until the
-    budget runs out; the best is ``objective.best``. (The CGA finds good regions cheaply; the
-    local search then gets much further from there than the CGA does.)"""
-    x = start
-    while objective.remaining() is None or objective.remaining() > 0:
-        score = None
-        try:
-            if x is None:
-                x, score = cga_start(objective, rng)
-        except Exhausted:
-            return
-        iterated_local_search(x, objective, rng, kick_genes, patience, score)
-        if objective.deadline is not None and time.perf_counter() >= objective.deadline:
-            return
-        x = None
+    """Iterated local search from ``start`` (or the best of a short CGA run), restarted whenever
+    it stalls for ``patience`` kicks, until the budget runs out (a :class:`Chain` run to the
+    end); the best is ``objective.best``."""
+    Chain(start).run(objective, rng, patience, kick_genes)
 
 
 def cga_start(objective: Objective, rng: np.random.Generator) -> tuple[np.ndarray, int]:
