@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_host import robots
+from pac_host import profiles, robots
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import measured_table, shifted_table
 from pac_host.pal import PAPER, PALConfig
@@ -33,9 +33,11 @@ from pac_host.pal import PAPER, PALConfig
 METHODS = {
     "paper": PALConfig(**PAPER),  # the paper's six differences, partial recombination
     "steps": PALConfig(**{**PAPER, "model_fitness": "steps"}),
-    "default": PALConfig(),  # the whole table fitted, informative tests, no model GA
-    "fit_ga": PALConfig(model_generations=40),  # the default with the model GA on top
-    "paper_tests": PALConfig(tests="paper"),  # the default with the paper's tests
+    # the default profile: the whole table fitted, informative tests, no model GA, and the
+    # anytime search between punctuations
+    "default": profiles.apply("default", PALConfig()),
+    "fit_ga": profiles.apply("default", PALConfig(model_generations=40)),  # + the model GA
+    "paper_tests": profiles.apply("default", PALConfig(tests="paper")),  # the paper's tests
 }
 BEST_KNOWN = {"shifted": 34}  # verified with pac-host simulate (DESIGN.md 2.6)
 

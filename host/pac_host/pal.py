@@ -376,7 +376,6 @@ class _AnytimeSearch:
 
     def __call__(self) -> None:
         from pac_host.search import anytime
-
         from pac_host.search.local import Chain
 
         carried = None if self.state.search is None else Chain.from_json(self.state.search)

@@ -27,6 +27,8 @@ PROFILES: dict[str, dict] = {
     "default": {"search": "ils", "search_evaluations": 250_000},
 }
 DEFAULT = "default"
+# how an experiment establishes the optimum on the actual robot, per profile
+OPTIMUM_SEARCH = {"paper": "cga", "default": "optimize"}
 
 
 def apply(profile: str, cfg):

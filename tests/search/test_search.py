@@ -160,10 +160,10 @@ def test_a_chain_carried_across_budgets_restarts_when_it_stalls(monkeypatch):
     for patience, restarted in ((2, True), (10**6, False)):
         calls = _count_restarts(monkeypatch)
         chain, rng = Chain(), np.random.default_rng(3)
-        for _ in range(8):
-            objective = Objective(rows, limit=40_000)
+        for _ in range(10):
+            objective = Objective(rows, limit=100_000)
             chain.run(objective, rng, patience)
-            assert objective.evaluations == 40_000
+            assert objective.evaluations == 100_000
             assert chain.stale <= patience
         assert (len(calls) > 1) == restarted, calls
         back = Chain.from_json(json.loads(json.dumps(chain.to_json())))

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from pac_host import limits
+from pac_host import limits, profiles
 from pac_host.cli.cluster_options import scheduler_options
 from pac_host.cli.options import (
     Bounded,
@@ -107,7 +107,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
         base_seed=base_seed, initial_generations=initial_generations,
         optimum_runs=optimum_runs, optimum_generations=optimum_generations,
-        optimum_search="cga" if profile == "paper" else "optimize",
+        optimum_search=profiles.OPTIMUM_SEARCH[profile],
         optimum_evaluations=optimum_evaluations,
         best_known=best_known,
         pal=profile_pal(profile, search_evaluations, model_generations,

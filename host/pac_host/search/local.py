@@ -158,7 +158,7 @@ class Chain:
             while True:
                 if self.x is None:
                     x, score = cga_start(objective, rng)
-                    self.stale = 0
+                    self.x, self.stale = x, 0  # a budget that ends in the climb keeps it
                 else:
                     x, score = self.x, int(objective(self.x[None])[0])
                 x, score = climb(x, score, objective, rng)
