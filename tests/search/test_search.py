@@ -198,3 +198,26 @@ def test_anytime_pal_carries_its_search_through_a_saved_state():
     pal.run(state, robot, rng, cfg, lambda s, r: rest.append(r))
     assert [first] + rest == whole
     assert all(r["search"]["evaluations"] == 15_000 for r in whole)
+
+
+def test_a_carried_chain_climbs_again_only_when_the_model_has_changed(monkeypatch):
+    """On the same model the chain's point is still a local optimum: the next budget goes to
+    kicks at once. On a changed model it is re-scored and climbed first."""
+    from pac_host.search import local
+
+    rows = shifted_table().rows
+    chain, rng = local.Chain(), np.random.default_rng(5)
+    chain.run(Objective(rows, limit=120_000), rng, 50)
+    starts = []
+    real = local.climb
+
+    def recorded(x, score, objective, rng=None):
+        starts.append(canonical(x, objective.budget))
+        return real(x, score, objective, rng)
+
+    monkeypatch.setattr(local, "climb", recorded)
+    for table, climbs_first in ((rows, False), (rows + 0.5, True)):
+        starts.clear()
+        x = chain.x.copy()
+        chain.run(Objective(table, limit=60_000), rng, 50)
+        assert (starts[0] == x).all() == climbs_first

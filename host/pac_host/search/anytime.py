@@ -11,6 +11,7 @@ whether or not the search overlaps the robot's tests.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -37,7 +38,7 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int, rng: np.random.
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
-    chain = Chain(pop[0].copy()) if chain is None else Chain(chain.x, chain.stale)
+    chain = Chain(pop[0].copy()) if chain is None else replace(chain)
     objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled)
     if evaluations > 0:
         chain.run(objective, rng, PATIENCE)

@@ -9,6 +9,7 @@ reproducible (a budget in seconds is not).
 
 from __future__ import annotations
 
+import hashlib
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -47,6 +48,13 @@ class Objective:
     best_score: int | None = None
     trace: list = field(default_factory=list)  # (evaluations, seconds, score) at each new best
     t0: float = field(default_factory=time.perf_counter)
+
+    def fingerprint(self) -> str:
+        """A digest of what the scores depend on: the model, its effects, budget, start pose."""
+        h = hashlib.sha256(np.ascontiguousarray(self.rows, dtype=np.float64).tobytes())
+        h.update(repr((tuple(str(e) for e in self.effects), self.budget,
+                       tuple(float(v) for v in self.start_pose))).encode())
+        return h.hexdigest()[:16]
 
     def remaining(self) -> int | None:
         return None if self.limit is None else self.limit - self.evaluations
@@ -149,38 +157,46 @@ class Chain:
 
     x: np.ndarray | None = None
     stale: int = 0
+    score: int | None = None  # x's score on the model it was last climbed on, and that model
+    model: str | None = None
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2) -> None:
         """Search until the objective's budget or deadline is spent. A carried-on chain first
-        re-scores and climbs its local optimum on the objective's (maybe changed) model."""
+        re-scores and climbs its local optimum if the objective's model has changed."""
+        model = objective.fingerprint()
         try:
             while True:
                 if self.x is None:
                     x, score = cga_start(objective, rng)
-                    self.x, self.stale = x, 0  # a budget that ends in the climb keeps it
+                    self.x, self.stale, self.model = x, 0, None  # kept if the climb is cut
+                elif self.model == model:
+                    x, score = self.x, self.score
                 else:
                     x, score = self.x, int(objective(self.x[None])[0])
-                x, score = climb(x, score, objective, rng)
-                self.x = x
+                if self.model != model:
+                    x, score = climb(x, score, objective, rng)
+                    self.x, self.score, self.model = x, score, model
                 while self.stale < patience:
                     y = kick(x, rng, kick_genes, objective.budget)
                     y, s = climb(y, int(objective(y[None])[0]), objective, rng)
                     self.stale = 0 if s > score else self.stale + 1
                     if fitness_of_score(s) >= fitness_of_score(score):  # plateaus are crossed
                         x, score = y, s
-                        self.x = x
-                self.x = None
+                        self.x, self.score = x, score
+                self.x, self.model = None, None
         except Exhausted:
             pass
 
     def to_json(self) -> dict:
-        return {"x": None if self.x is None else self.x.tolist(), "stale": self.stale}
+        return {"x": None if self.x is None else self.x.tolist(), "stale": self.stale,
+                "score": self.score, "model": self.model}
 
     @classmethod
     def from_json(cls, doc: dict) -> Chain:
-        x = doc.get("x")
-        return cls(None if x is None else np.array(x, dtype=np.int64), int(doc.get("stale", 0)))
+        x, score, model = doc.get("x"), doc.get("score"), doc.get("model")
+        return cls(None if x is None else np.array(x, dtype=np.int64), int(doc.get("stale", 0)),
+                   None if score is None else int(score), None if model is None else str(model))
 
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
