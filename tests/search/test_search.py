@@ -142,9 +142,10 @@ def _count_restarts(monkeypatch) -> list:
     calls = []
     real = local.cga_start
 
-    def counted(objective, rng):
-        calls.append(objective.evaluations)
-        return real(objective, rng)
+    def counted(objective, rng, short=False):
+        out = real(objective, rng, short)  # a start cut by the budget is made again
+        calls.append((objective.evaluations, short))
+        return out
 
     monkeypatch.setattr(local, "cga_start", counted)
     return calls
@@ -166,6 +167,7 @@ def test_a_chain_carried_across_budgets_restarts_when_it_stalls(monkeypatch):
             assert objective.evaluations == 100_000
             assert chain.stale <= patience
         assert (len(calls) > 1) == restarted, calls
+        assert [short for _, short in calls] == [k % 2 == 1 for k in range(len(calls))]
         back = Chain.from_json(json.loads(json.dumps(chain.to_json())))
         assert back.stale == chain.stale
         assert (back.x is None and chain.x is None) or (back.x == chain.x).all()

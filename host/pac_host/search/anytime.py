@@ -38,7 +38,7 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int, rng: np.random.
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
-    chain = Chain(pop[0].copy()) if chain is None else replace(chain)
+    chain = Chain(pop[0].copy(), starts=1) if chain is None else replace(chain)
     objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled)
     if evaluations > 0:
         chain.run(objective, rng, PATIENCE)

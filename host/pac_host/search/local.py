@@ -136,6 +136,12 @@ def kick(x: np.ndarray, rng: np.random.Generator, genes: int, budget: int) -> np
 
 
 RESTART_POPULATION, RESTART_GENERATIONS = 64, 150  # the CGA run that starts each restart
+# Every second restart starts from short loops: random repetitions divided by this. A loop much
+# shorter than the budget repeats, a periodic sweep; a long one is cut in its first pass, an
+# open sweep. Their best turn cycles differ, and a CGA from random turn cycles (32
+# repetitions a gene on average, a 288-cycle loop) almost always ends among the long ones.
+# Measured: on the shifted table, 7 of 9 seeds at 34 or better in 20 s against 4 of 10.
+SHORT_LOOP_DIVISOR = 4
 
 
 @dataclass
@@ -159,6 +165,7 @@ class Chain:
     stale: int = 0
     score: int | None = None  # x's score on the model it was last climbed on, and that model
     model: str | None = None
+    starts: int = 0  # starting points so far, a given one included (every second is short)
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2) -> None:
@@ -168,7 +175,8 @@ class Chain:
         try:
             while True:
                 if self.x is None:
-                    x, score = cga_start(objective, rng)
+                    x, score = cga_start(objective, rng, short=self.starts % 2 == 1)
+                    self.starts += 1
                     self.x, self.stale, self.model = x, 0, None  # kept if the climb is cut
                 elif self.model == model:
                     x, score = self.x, self.score
@@ -190,13 +198,14 @@ class Chain:
 
     def to_json(self) -> dict:
         return {"x": None if self.x is None else self.x.tolist(), "stale": self.stale,
-                "score": self.score, "model": self.model}
+                "score": self.score, "model": self.model, "starts": self.starts}
 
     @classmethod
     def from_json(cls, doc: dict) -> Chain:
         x, score, model = doc.get("x"), doc.get("score"), doc.get("model")
         return cls(None if x is None else np.array(x, dtype=np.int64), int(doc.get("stale", 0)),
-                   None if score is None else int(score), None if model is None else str(model))
+                   None if score is None else int(score), None if model is None else str(model),
+                   int(doc.get("starts", 0)))
 
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
@@ -204,16 +213,20 @@ def restarts(objective: Objective, rng: np.random.Generator, patience: int,
     """Iterated local search from ``start`` (or the best of a short CGA run), restarted whenever
     it stalls for ``patience`` kicks, until the budget runs out (a :class:`Chain` run to the
     end); the best is ``objective.best``."""
-    Chain(start).run(objective, rng, patience, kick_genes)
+    Chain(start, starts=int(start is not None)).run(objective, rng, patience, kick_genes)
 
 
-def cga_start(objective: Objective, rng: np.random.Generator) -> tuple[np.ndarray, int]:
+def cga_start(objective: Objective, rng: np.random.Generator,
+              short: bool = False) -> tuple[np.ndarray, int]:
     """The best turn cycle of a short CGA run from a random population, scored through the
-    objective (so its evaluations count)."""
+    objective (so its evaluations count); ``short``: the population's repetitions divided by
+    :data:`SHORT_LOOP_DIVISOR`, to start among short, repeating loops."""
     from pac_host import cga
 
     cfg = cga.CGAConfig(population=RESTART_POPULATION, budget=objective.budget)
     pop = cga.random_population(rng, cfg.population)
+    if short:
+        pop[..., 1] //= SHORT_LOOP_DIVISOR
     fit = objective(pop)
     for _ in range(RESTART_GENERATIONS):
         pop = cga.step(pop, fit, rng, cfg)
