@@ -64,6 +64,7 @@ class EvolveConfig:
     # were "cga"
     search: str = "cga"
     search_evaluations: int = 0
+    search_while_walking: bool = False  # past the budget, until the robot has walked the tests
     robot: dict = field(default_factory=dict)  # what played the robot (a resume reuses it)
     correction: str = pal.PALConfig.correction
     structure: str = pal.PALConfig.structure
@@ -96,7 +97,8 @@ class EvolveConfig:
             model_population=self.model_population, budget=self.budget,
             correction=self.correction, structure=self.structure, tests=self.tests,
             operational=self.operational, search=self.search,
-            search_evaluations=self.search_evaluations)
+            search_evaluations=self.search_evaluations,
+            search_while_walking=self.search_while_walking and self.search != "cga")
 
     def for_counts_only(self) -> EvolveConfig:
         """The settings to use when the observer reports coverage counts, not paths: the

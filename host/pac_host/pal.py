@@ -20,6 +20,7 @@ simulated actual robot of the paper is :class:`SimulatedRobot`.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -119,6 +120,10 @@ class PALConfig:
     # search on the model while the robot walks the tests (pac_host.search.anytime).
     search: str = "cga"
     search_evaluations: int = 0
+    # With an anytime search run in a worker (evolve): once its budget is spent, keep searching
+    # until the robot has walked the tests. A real robot walks about 13 minutes a punctuation,
+    # hundreds of millions of evaluations; the run is then no longer reproducible from its seed.
+    search_while_walking: bool = False
     # The model correction: "ga", the model GA alone (the paper); "fit", the whole table fitted
     # to every observed step (effects of the library, then rows by evidence: model_fit), then
     # ``model_generations`` of the model GA on top (0: the fitted table alone).
@@ -255,10 +260,12 @@ def punctuate(
                 search.cancel()
                 raise
             finally:
+                search.walked()
                 job.result()
     else:
         results = robot.run_tests(tests)
         if search is not None:
+            search.walked()  # in line there is no walking left to search through
             search()
 
     # the operational turn cycle: the best tested (or only the CGA's best, as in the paper),
@@ -369,20 +376,32 @@ class _AnytimeSearch:
         self.chain = state.search
         self.record: dict = {}
         self.cancelled = False
+        self.walking = threading.Event()
+        self.walking.set()
 
     def cancel(self) -> None:
         """Stop early (the robot's tests failed): the punctuation will be redone."""
         self.cancelled = True
+
+    def walked(self) -> None:
+        """The robot has walked the tests: a search past its budget stops."""
+        self.walking.clear()
 
     def __call__(self) -> None:
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
         carried = None if self.state.search is None else Chain.from_json(self.state.search)
+        model, effects = self.state.models[0], self.state.model_effects
         self.pop, rec, chain = anytime.advance(
-            self.state.models[0], self.state.cga_pop, self.cfg.search_evaluations, self.rng,
-            self.cfg.budget, self.state.model_effects, self.cfg.search,
-            cancelled=lambda: self.cancelled, chain=carried)
+            model, self.state.cga_pop, self.cfg.search_evaluations, self.rng, self.cfg.budget,
+            effects, self.cfg.search, cancelled=lambda: self.cancelled, chain=carried)
+        if self.cfg.search_while_walking and self.walking.is_set() and not self.cancelled:
+            self.pop, more, chain = anytime.advance(
+                model, self.pop, None, self.rng, self.cfg.budget, effects, self.cfg.search,
+                cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=chain)
+            rec = {**rec, "evaluations_while_walking": more["evaluations"],
+                   "best_score": max(rec.get("best_score", -1), more.get("best_score", -1))}
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
 

@@ -45,6 +45,8 @@ def test_simulate_budget_at_the_limit_runs():
     (["evolve", "--model-generations", "99999999"], "--model-generations must be 0..10000"),
     (["evolve", "--interval", "0"], "--interval must be 1..100000"),
     (["measure", "--repeats", "1"], "--repeats must be 2..1000"),
+    (["evolve", "--profile", "paper", "--search-while-walking"],
+     "--search-while-walking needs an anytime profile"),
     (["simulate", "--budget", "lots", "--turn-cycle", "1:2"], "'lots' is not a valid integer"),
 ])
 def test_out_of_range_counts_are_one_line(tmp_path, args, words):

@@ -92,3 +92,28 @@ def test_anytime_search_improves_the_turn_cycle_on_the_model():
     after = pal.cga.fitness(model, state.cga_pop[:1], cfg.budget)[0]
     assert rec["search"]["best_score"] == after
     assert after > before
+
+
+def test_search_while_walking_searches_until_the_robot_has_walked_the_tests():
+    """evolve on a real robot: once its budget is spent the worker searches on until the
+    tests end (the robot's walking time becomes search time); in line it does not."""
+    import time
+
+    class SlowRobot(pal.SimulatedRobot):
+        def run_tests(self, tests):
+            time.sleep(1.0)  # the robot walking
+            return super().run_tests(tests)
+
+    base = replace(profiles.apply("default", pal.PALConfig(cga_population=16, model_population=8,
+                                                           model_generations=2)),
+                   search_evaluations=2000)
+    robot = SlowRobot(shifted_table())
+    for walking, concurrent in ((True, True), (False, True), (True, False)):
+        cfg = replace(base, search_while_walking=walking)
+        rng = np.random.default_rng(3)
+        state = pal.initial_state(measured_table(), rng, cfg)
+        state, rec = pal.punctuate(state, robot, rng, cfg, concurrent=concurrent)
+        extra = rec["search"].get("evaluations_while_walking", 0)
+        assert rec["search"]["evaluations"] == 2000
+        assert (extra > 2000) == (walking and concurrent), (walking, concurrent, extra)
+        assert state.search is not None

@@ -59,10 +59,15 @@ from pac_host.robot.recovery import describe_counts
 @learning_options
 @profile_option()
 @search_evaluations_option()
+@click.option("--search-while-walking/--no-search-while-walking", default=None,
+              help="Once a punctuation's search budget is spent, keep searching until the robot "
+                   "has walked the tests (its 13 minutes become search time; the run is then "
+                   "not reproducible from its seed). [default: on with --port, off with the "
+                   "built-in emulator]")
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
-               correction, structure, tests, operational, profile, search_evaluations, port,
-               observer_spec, placer, **sim) -> None:
+               correction, structure, tests, operational, profile, search_evaluations,
+               search_while_walking, port, observer_spec, placer, **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
     Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
@@ -72,8 +77,10 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
     when asked (press Enter); the built-in emulator is placed through its tracker.
 
     With the default profile the turn-cycle search runs while the robot walks the tests, with
-    a budget of evaluations per punctuation (the same run on any machine); --profile paper
-    runs INTERVAL generations of the paper's CGA between punctuations instead.
+    a budget of evaluations per punctuation (the same run on any machine), and on a real robot
+    (--port) on past it until the robot has walked them (--no-search-while-walking keeps a run
+    reproducible); --profile paper runs INTERVAL generations of the paper's CGA between
+    punctuations instead.
 
     Writes OUT/log.jsonl (a line per punctuation), observations.jsonl (every observation, as
     it happens), runs.jsonl (observed runs, for `pac-host diagnose`), model.json,
@@ -101,8 +108,14 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         learn = profile_pal(profile, search_evaluations, model_generations,
                             dict(model_fitness=model_fitness, correction=correction,
                                  structure=structure, tests=tests, operational=operational))
+        if search_while_walking is None:
+            search_while_walking = port is not None
+        if search_while_walking and learn.search == "cga":
+            raise InputError(f"--search-while-walking needs an anytime profile, not "
+                             f"--profile {profile}")
         cfg = EvolveConfig(seed=seed, method=method, model_fitness=learn.model_fitness,
                            search=learn.search, search_evaluations=learn.search_evaluations,
+                           search_while_walking=search_while_walking,
                            generations=generations, interval=interval,
                            model_generations=model_generations, cga_population=cga_population,
                            model_population=model_population, budget=budget,

@@ -23,12 +23,14 @@ METHODS = ("ils",)
 PATIENCE = 50  # kicks without a higher score before the chain restarts (as optimize's)
 
 
-def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int, rng: np.random.Generator,
+def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
+            rng: np.random.Generator,
             budget: int = DEFAULT_BUDGET, effects: Sequence[Effect] = (), method: str = "ils",
             cancelled: Callable[[], bool] | None = None,
             chain: Chain | None = None) -> tuple[np.ndarray, dict, Chain]:
     """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
+    ``evaluations`` None: until ``cancelled`` says stop (it must be given then).
     ``pop`` (P, 9, 2) is sorted best first on this model; ``chain`` is the search carried from
     the last punctuation (None: a new chain from the population's best). Returns the population
     with the best turn cycle found in front (the others shifted down, duplicates of it
@@ -38,9 +40,11 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int, rng: np.random.
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
+    if evaluations is None and cancelled is None:
+        raise ValueError("a search without an evaluation budget needs a way to stop")
     chain = Chain(pop[0].copy(), starts=1) if chain is None else replace(chain)
     objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled)
-    if evaluations > 0:
+    if evaluations is None or evaluations > 0:
         chain.run(objective, rng, PATIENCE)
     record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}
     if objective.best is None:
