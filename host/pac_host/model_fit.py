@@ -38,7 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pac_host.coverage import expand
-from pac_host.diagnose import Run, diagnose, split_runs
+from pac_host.diagnose import Run, split_runs
+from pac_host.diagnose.pipeline import select_effects
 from pac_host.diagnose.residuals import batch_of, predicted_moves, step_residuals
 from pac_host.errors import InputError
 from pac_host.model.effects import EFFECT_SPECS, Effect, effective_rows
@@ -131,13 +132,13 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
     found: tuple[Effect, ...] = ()
     fit_s, hold_s = _split_by_rows(_stretches(runs), rng)
     if table_lib and fit_s and hold_s:
-        found = tuple(diagnose(base, fit_s, hold_s, rng, table_lib).selected)
+        found = select_effects(base, fit_s, hold_s, table_lib)
     if not seq_lib:
         return found
     table_fx, seq_fx = _split_effects(tuple(base.effects) + found)
     fit, hold = split_runs(runs, HOLDOUT_FRACTION, rng)
     free = _rows_only(GaitTable(effective_rows(base.rows, table_fx), (), base.name), fit, seq_fx)
-    more = diagnose(free, fit, hold, rng, seq_lib).selected
+    more = select_effects(free, fit, hold, seq_lib)
     batch = batch_of(runs)
     keep = [e for e in more if _moves_anything(free, batch, e)]
     return found + tuple(keep)
@@ -200,21 +201,36 @@ def _split_effects(effects: Sequence[Effect]) -> tuple[list[Effect], list[Effect
     return table, [e for e in effects if EFFECT_SPECS[e.name].stage != "table"]
 
 
+def structure_due(n_runs: int, selected_at: int | None) -> bool:
+    """Whether to select the effects again with ``n_runs`` runs observed, the last selection
+    having been made with ``selected_at`` (None: never): while the window of the latest
+    :data:`STRUCTURE_RUNS` runs is still filling, and then each time it holds only runs the
+    last selection did not see. (A selection costs seconds; one per window loses nothing the
+    window could show.)"""
+    return selected_at is None or n_runs <= STRUCTURE_RUNS or n_runs - selected_at >= STRUCTURE_RUNS
+
+
 def correct(
     base: GaitTable,
     observed: Sequence[Observed],
     rng: np.random.Generator,
     structure: str = "effects",
     prior_sd: Sequence[float] = DEFAULT_SCALE,
+    selected: tuple[Effect, ...] | None = None,
 ) -> Posterior:
     """The posterior over the table given every observed test (see the module docstring).
 
-    ``structure`` "none" skips the effects fit (rows by evidence around ``base`` alone).
+    ``structure`` "none" skips the effects fit (rows by evidence around ``base`` alone);
+    ``selected`` gives the effects instead of selecting them again (see
+    :func:`structure_due`).
     """
     if structure not in STRUCTURES:
         raise InputError(f"unknown structure {structure!r}; use one of {', '.join(STRUCTURES)}")
     runs = _runs(observed)
-    selected = fit_structure(base, runs, rng) if structure == "effects" else ()
+    if structure != "effects":
+        selected = ()
+    elif selected is None:
+        selected = fit_structure(base, runs, rng)
     table_fx, seq_fx = _split_effects(tuple(base.effects) + selected)
     struct_rows = effective_rows(base.rows, table_fx)
     prior = np.asarray(prior_sd, dtype=np.float64)

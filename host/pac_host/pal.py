@@ -182,6 +182,9 @@ class PALState:
     base: GaitTable | None = None  # the starting model ("fit" corrects it from all evidence)
     observed: tuple = ()  # every observed test so far (model_fit.Observed), for "fit"
     search: dict | None = None  # the anytime search carried on (search.local.Chain.to_json())
+    # the effects the "fit" correction last selected, and the observed runs it had then
+    structure: tuple = ()
+    structure_runs: int | None = None
 
 
 def initial_state(
@@ -279,7 +282,7 @@ def punctuate(
         op_score, op_fit = state.operational_score, state.operational_fitness
 
     if cfg.correction == "fit":
-        models, errors, model_effects, observed, fit_record = _fit_correction(
+        models, errors, model_effects, observed, fit_record, structure = _fit_correction(
             state, tests, results, rng, cfg)
         error_before = model_error_fn(tests, results, replace(cfg, model_fitness="steps"),
                                       state.model_effects)(state.models[:1])[0]
@@ -291,6 +294,7 @@ def punctuate(
             cfg.model_config(), state.model_effects, error_fn,
         )
         model_effects, observed, fit_record = state.model_effects, state.observed, {}
+        structure = (state.structure, state.structure_runs)
     record = {
         "generation": state.generation,
         "method": cfg.method,
@@ -320,7 +324,7 @@ def punctuate(
     if search is not None:
         carried = search.chain
     new = PALState(state.generation, pop, models, tuple(model_effects), operational,
-                   op_score, op_fit, state.base, observed, carried)
+                   op_score, op_fit, state.base, observed, carried, *structure)
     return new, record
 
 
@@ -347,7 +351,11 @@ def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult
                                                                         strict=True))
     observed = tuple(state.observed) + new
     base = state.base or GaitTable(state.models[0], state.model_effects)
-    post = model_fit.correct(base, observed, rng, cfg.structure, cfg.model_config().scale)
+    due = model_fit.structure_due(len(observed), state.structure_runs)
+    post = model_fit.correct(base, observed, rng, cfg.structure, cfg.model_config().scale,
+                             None if due else tuple(state.structure))
+    structure = (tuple(post.selected), len(observed)) if due else (state.structure,
+                                                                    state.structure_runs)
     size = cfg.model_population
     if cfg.model_generations > 0:
         used = model_ga.used_gait_ids(tests, cfg.budget)
@@ -360,10 +368,10 @@ def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult
         models = post.sample(size, rng)
         errors = model_ga.step_error(tests, [r.poses for r in results], cfg.budget,
                                      post.effects)(models[:1])
-    record = {"structure": [str(e) for e in post.selected],
+    record = {"structure": [str(e) for e in post.selected], "structure_selected": due,
               "evidence": post.evidence.tolist(),
               "row_sd": post.sd.round(4).tolist()}
-    return models, errors, post.effects, observed, record
+    return models, errors, post.effects, observed, record, structure
 
 
 class _AnytimeSearch:
@@ -463,6 +471,8 @@ def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
                       "cycles_since_power_on": o.cycles_since_power_on}
                      for o in state.observed],
         "search": state.search,
+        "structure": [e.to_json() for e in state.structure],
+        "structure_runs": state.structure_runs,
         "rng": rng.bit_generator.state,
     }
 
@@ -500,6 +510,8 @@ def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
                                      int(o.get("cycles_since_power_on", 0)))
                   for o in doc.get("observed", [])),
             _search_from_json(doc.get("search")),
+            tuple(effect_from_json(e) for e in doc.get("structure", [])),
+            None if doc.get("structure_runs") is None else int(doc["structure_runs"]),
         )
     except (KeyError, TypeError, ValueError) as e:
         raise InputError(f"PAL state is incomplete or malformed ({e})") from None

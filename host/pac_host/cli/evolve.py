@@ -109,7 +109,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                             dict(model_fitness=model_fitness, correction=correction,
                                  structure=structure, tests=tests, operational=operational))
         if search_while_walking is None:
-            search_while_walking = port is not None
+            search_while_walking = port is not None and learn.search != "cga"
         if search_while_walking and learn.search == "cga":
             raise InputError(f"--search-while-walking needs an anytime profile, not "
                              f"--profile {profile}")
