@@ -157,7 +157,7 @@ class Chain:
     >>> objective = Objective(shifted_table().rows, limit=20_000)
     >>> chain = Chain()
     >>> chain.run(objective, np.random.default_rng(0), patience=50)
-    >>> objective.evaluations, fitness_of_score(objective.best_score) > 10
+    >>> objective.evaluations, bool(fitness_of_score(objective.best_score) > 10)
     (20000, True)
     """
 
