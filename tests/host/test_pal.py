@@ -80,17 +80,18 @@ def test_pal_records_say_what_happened():
     assert rec["used_gait_ids"][0] == executed[0, 0]
 
 
-def test_state_round_trip_resumes_bit_for_bit():
+def resumed_and_whole(cfg: pal.PALConfig, seed: int) -> tuple[list, list, dict]:
+    """A run saved after its first punctuation and resumed from the file, and the same run
+    never stopped: (records resumed, records whole, the saved state)."""
     import json
 
-    cfg = pal.PALConfig(**{**SMALL.__dict__, "generations": 120})
     robot = pal.SimulatedRobot(shifted_table())
-    rng = np.random.default_rng(9)
+    rng = np.random.default_rng(seed)
     state = pal.initial_state(measured_table(), rng, cfg)
     whole = []
     pal.run(state, robot, rng, cfg, lambda s, r: whole.append(r))
 
-    rng = np.random.default_rng(9)
+    rng = np.random.default_rng(seed)
     state = pal.initial_state(measured_table(), rng, cfg)
     state, first = pal.punctuate(state, robot, rng, cfg)
     saved = json.loads(json.dumps(pal.state_to_json(state, rng)))  # through a file, as it were
@@ -98,7 +99,29 @@ def test_state_round_trip_resumes_bit_for_bit():
     state, _ = pal.advance_cga(state, cfg.interval, rng, cfg)
     rest = []
     pal.run(state, robot, rng, cfg, lambda s, r: rest.append(r))
-    assert [first] + rest == whole
+    return [first] + rest, whole, saved
+
+
+def test_state_round_trip_resumes_bit_for_bit():
+    resumed, whole, _ = resumed_and_whole(
+        pal.PALConfig(**{**SMALL.__dict__, "generations": 120}), 9)
+    assert resumed == whole
+
+
+def test_anytime_pal_carries_its_search_through_a_saved_state():
+    """The default profile's search is part of the state: a run saved after one punctuation
+    and resumed from the file is the same run as one never stopped."""
+    from dataclasses import replace
+
+    from pac_host import profiles
+
+    cfg = replace(profiles.apply("default", pal.PALConfig(
+        cga_population=16, model_population=8, model_generations=2, generations=60,
+        interval=20)), search_evaluations=15_000)
+    resumed, whole, saved = resumed_and_whole(cfg, 4)
+    assert saved["search"]["x"] is not None
+    assert resumed == whole
+    assert all(r["search"]["evaluations"] == 15_000 for r in whole)
 
 
 def test_step_fitness_needs_observed_paths():

@@ -173,35 +173,6 @@ def test_a_chain_carried_across_budgets_restarts_when_it_stalls(monkeypatch):
         assert (back.x is None and chain.x is None) or (back.x == chain.x).all()
 
 
-def test_anytime_pal_carries_its_search_through_a_saved_state():
-    """The default profile's search is part of the state: a run saved after one punctuation
-    and resumed from the file is the same run as one never stopped."""
-    from dataclasses import replace
-
-    from pac_host import pal, profiles
-
-    cfg = replace(profiles.apply("default", pal.PALConfig(
-        cga_population=16, model_population=8, model_generations=2, generations=60,
-        interval=20)), search_evaluations=15_000)
-    robot = pal.SimulatedRobot(shifted_table())
-    rng = np.random.default_rng(4)
-    state = pal.initial_state(measured_table(), rng, cfg)
-    whole = []
-    pal.run(state, robot, rng, cfg, lambda s, r: whole.append(r))
-
-    rng = np.random.default_rng(4)
-    state = pal.initial_state(measured_table(), rng, cfg)
-    state, first = pal.punctuate(state, robot, rng, cfg)
-    saved = json.loads(json.dumps(pal.state_to_json(state, rng)))
-    assert saved["search"]["x"] is not None
-    state, rng = pal.state_from_json(saved)
-    state, _ = pal.advance_cga(state, cfg.interval, rng, cfg)
-    rest = []
-    pal.run(state, robot, rng, cfg, lambda s, r: rest.append(r))
-    assert [first] + rest == whole
-    assert all(r["search"]["evaluations"] == 15_000 for r in whole)
-
-
 def test_a_carried_chain_climbs_again_only_when_the_model_has_changed(monkeypatch):
     """On the same model the chain's point is still a local optimum: the next budget goes to
     kicks at once. On a changed model it is re-scored and climbed first."""
