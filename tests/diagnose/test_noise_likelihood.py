@@ -82,3 +82,16 @@ def test_noise_floor_separates_the_robots_own_step_noise(cycles):
     fit, hold = split_runs(runs, 0.3, rng)
     d = diagnose(GaitTable(measured_table().rows), fit, hold, rng)
     assert d.verdict == "no_significant_gap" and d.selected == []
+
+
+def test_block_substitution_whitens_as_the_dense_inverse(make_runs):
+    """The fast whitening (block forward substitution) gives the dense L^-1 r value for value,
+    across chunk borders, padding and leading dimensions."""
+    b = batch_of(make_runs([], n_runs=3, n_cycles=150))  # 150 steps: three chunks, padded
+    wh = whitener(b, NoiseFloor(0.5, 1.0, "given", 0, True, 0.3, 0.6))
+    assert wh.w.shape[1] > 1 and wh.w.shape[1] * wh.steps > b.ids.shape[1]
+    res = np.random.default_rng(2).normal(size=(2, *b.ids.shape, 3))
+    fast, dense = wh.whiten(res), wh.whiten(res, dense=True)
+    assert fast.shape == dense.shape == (2, 3, wh.w.shape[1] * wh.w.shape[2])
+    np.testing.assert_allclose(fast, dense, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(wh.whiten(res[0]), dense[0], rtol=1e-10, atol=1e-10)
