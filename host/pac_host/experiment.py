@@ -229,6 +229,12 @@ def _pal_fields(p: pal.PALConfig) -> dict:
     return {k: getattr(p, k) for k in p.__dataclass_fields__}
 
 
+def recombination_inert(p: pal.PALConfig) -> bool:
+    """Whether full and partial recombination are the same run: they differ only in the model
+    GA, and with the whole-table fit and no model GA generations none runs."""
+    return p.correction == "fit" and p.model_generations == 0
+
+
 def _read_complete_runs(log_path: Path, cfg: ExperimentConfig) -> dict[tuple[int, str], list]:
     """Punctuation records of runs whose log reaches the final generation."""
     runs: dict[tuple[int, str], list] = {}
@@ -371,7 +377,10 @@ def run_experiment(
     opt_args = [(actual, k, cfg) for k in range(cfg.optimum_runs)]
     optimum_runs = _map(optimum_run, opt_args, jobs, tick("optimum", len(opt_args)))
 
-    todo = [(s, m) for s in range(cfg.seeds) for m in cfg.methods if (s, m) not in done_runs]
+    # with recombination inert, full's run is partial's: it is run once and logged for both
+    twin = recombination_inert(cfg.pal) and {"full", "partial"} <= set(cfg.methods)
+    todo = [(s, m) for s in range(cfg.seeds) for m in cfg.methods
+            if (s, m) not in done_runs and not (twin and m == "full")]
     seeds_needed = sorted({s for s, _ in todo})
     pops = dict(zip(seeds_needed, _map(
         initial_population, [(model, s, cfg) for s in seeds_needed], jobs,
@@ -379,6 +388,8 @@ def run_experiment(
     fresh = _map_pal_runs([(model, actual, s, m, pops[s], cfg) for s, m in todo],
                           jobs, log_path, tick("PAL runs", len(todo)))
     results = fresh + [_result_from_log(recs, s, m) for (s, m), recs in done_runs.items()]
+    if twin:
+        results += _twin_runs(results, log_path)
     searched = max(r["fitness"] for r in optimum_runs)
     observed = max(max(r["coverage"]) for r in results)
     optimum = max(searched, observed)
@@ -403,9 +414,29 @@ def run_experiment(
         "runs": results,
         "comparison": compare(results, cfg, optimum),
         "robot_time": robot_time_report(results, best_known),
+        "same_runs": ([{"method": "full", "same_as": "partial",
+                        "why": "recombination acts only in the model GA, which does not run "
+                               "(whole-table fit, 0 model GA generations)"}] if twin else []),
     }
     write_atomic(out_dir / "summary.json", json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def _twin_runs(results: list[dict], log_path: Path) -> list[dict]:
+    """``full``'s runs as copies of ``partial``'s where recombination is inert (seeds whose
+    full run is not already there), their punctuation records appended to the log."""
+    have = {r["seed"] for r in results if r["method"] == "full"}
+    twins = [{**r, "method": "full"} for r in sorted(results, key=lambda r: r["seed"])
+             if r["method"] == "partial" and r["seed"] not in have]
+    seeds = {r["seed"] for r in twins}
+    lines = []
+    for line in log_path.read_text().splitlines() if seeds else []:
+        rec = json.loads(line)
+        if rec["method"] == "partial" and rec["seed"] in seeds:
+            lines.append(json.dumps({**rec, "method": "full", "same_run_as": "partial"}) + "\n")
+    with open(log_path, "a") as f:
+        f.write("".join(lines))
+    return twins
 
 
 def _optimum_search(cfg: ExperimentConfig) -> dict:

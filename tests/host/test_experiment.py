@@ -48,6 +48,26 @@ def test_experiment_writes_summary_log_and_plots(finished):
     assert "seeds reached the optimum" in text and "summary:" in text
 
 
+def test_full_run_once_with_partial_is_what_full_alone_gives(finished, tmp_path):
+    """With the whole-table fit and no model GA, recombination has nothing to act on: the
+    experiment runs partial once and reports it for full too. Full run on its own must give
+    the same runs, punctuation for punctuation."""
+    out, text = finished
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["same_runs"] == [{"method": "full", "same_as": "partial",
+                                     "why": summary["same_runs"][0]["why"]}]
+    assert "full is the same run as partial" in text
+    res = _run(["experiment", *SMALL, "--methods", "full", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    alone = json.loads((tmp_path / "summary.json").read_text())
+    assert alone["same_runs"] == []
+    keep = ("seed", "coverage", "operational", "final_model", "final_model_error")
+    assert [{k: r[k] for k in keep} for r in alone["runs"]] == \
+        [{k: r[k] for k in keep} for r in summary["runs"] if r["method"] == "full"]
+    logged = [json.loads(x) for x in (out / "log.jsonl").read_text().splitlines()]
+    assert all(r["same_run_as"] == "partial" for r in logged if r["method"] == "full")
+
+
 def test_optimum_is_the_best_known_on_the_actual_robot(finished):
     out, _ = finished
     summary = json.loads((out / "summary.json").read_text())

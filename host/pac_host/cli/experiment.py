@@ -143,6 +143,9 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         click.echo(f"reached optimum, Fisher exact p = {t['reached_optimum_fisher_exact_p']:.4g}; "
                    f"final coverage, Wilcoxon p = {t['final_coverage_wilcoxon']['p_value']:.4g}; "
                    f"mean coverage, Wilcoxon p = {t['mean_coverage_wilcoxon']['p_value']:.4g}")
+    for same in summary["same_runs"]:
+        click.echo(f"{same['method']} is the same run as {same['same_as']}, run once: "
+                   f"{same['why']}")
     rt = summary["robot_time"]
     click.echo(f"best known {rt['best_known']}; target {rt['target']:.0%} of it")
     for m, s in rt["methods"].items():
