@@ -142,9 +142,9 @@ def _count_restarts(monkeypatch) -> list:
     calls = []
     real = local.cga_start
 
-    def counted(objective, rng, short=False):
-        out = real(objective, rng, short)  # a start cut by the budget is made again
-        calls.append((objective.evaluations, short))
+    def counted(objective, rng, divisor=1):
+        out = real(objective, rng, divisor)  # a start cut by the budget is made again
+        calls.append((objective.evaluations, divisor))
         return out
 
     monkeypatch.setattr(local, "cga_start", counted)
@@ -155,6 +155,7 @@ def test_a_chain_carried_across_budgets_restarts_when_it_stalls(monkeypatch):
     """Anytime PAL hands the search a small budget per punctuation: the chain carries its
     stall count from one budget to the next, so it restarts from a new basin once it stalls,
     however the budget is cut; with endless patience it stays in its first."""
+    from pac_host.search import local
     from pac_host.search.local import Chain
 
     rows = shifted_table().rows
@@ -167,7 +168,8 @@ def test_a_chain_carried_across_budgets_restarts_when_it_stalls(monkeypatch):
             assert objective.evaluations == 100_000
             assert chain.stale <= patience
         assert (len(calls) > 1) == restarted, calls
-        assert [short for _, short in calls] == [k % 2 == 1 for k in range(len(calls))]
+        divisors = local.LOOP_DIVISORS
+        assert [d for _, d in calls] == [divisors[k % len(divisors)] for k in range(len(calls))]
         back = Chain.from_json(json.loads(json.dumps(chain.to_json())))
         assert back.stale == chain.stale
         assert (back.x is None and chain.x is None) or (back.x == chain.x).all()
