@@ -24,7 +24,7 @@ from pac_host.pal import PAPER
 
 PROFILES: dict[str, dict] = {
     "paper": {**PAPER, "search": "cga"},
-    "default": {"search": "ils", "search_evaluations": 250_000},
+    "default": {"search": "ils", "search_evaluations": 400_000},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile
