@@ -258,7 +258,7 @@ def step_moves(
     for e in effects:
         p = e.params
         if e.name == "transition" and p["alpha"] > 0:
-            prev = np.empty_like(body)
+            prev = body.copy()  # a run's first step keeps its own move unless prev_gait is given
             prev[..., 1:, :] = body[..., :-1, :]
             changed = np.zeros(gait_ids.shape, dtype=bool)
             changed[..., 1:] = gait_ids[..., 1:] != gait_ids[..., :-1]
