@@ -202,12 +202,14 @@ def test_the_best_known_turn_cycles_score_as_recorded():
     """The benchmarks and docs measure against bench/best_known.json: each record holds."""
     from pathlib import Path
 
+    from pac_host import robots
     from pac_host.model import resolve_table
 
     doc = json.loads((Path(__file__).resolve().parents[2] / "bench" / "best_known.json")
                      .read_text())
     records = {k: v for k, v in doc.items() if isinstance(v, dict)}
     assert records
-    for table, rec in records.items():
-        cov = simulate(resolve_table(table).rows, parse_turn_cycle(rec["turn_cycle"]), 200)
-        assert cov.row(0)["fitness"] == rec["fitness"], table
+    for name, rec in records.items():
+        table = robots.build(name) if name in robots.ROBOTS else resolve_table(name)
+        cov = simulate(table.rows, parse_turn_cycle(rec["turn_cycle"]), 200, table.effects)
+        assert cov.row(0)["fitness"] == rec["fitness"], name
