@@ -147,17 +147,22 @@ def _problem(table: GaitTable, batch: Batch, noise: NoiseFloor) -> Problem:
     return Problem(table.rows, tuple(table.effects), batch, whitener(batch, noise))
 
 
+def _problems(table: GaitTable, fit_b: Batch, hold_b: Batch
+              ) -> tuple[NoiseFloor, Problem, Problem]:
+    """The noise floor, estimated on the fitting runs, and the fitting and held-out problems
+    whitened with it."""
+    noise = estimate_noise(fit_b, step_residuals(table.rows, fit_b, tuple(table.effects)))
+    return noise, _problem(table, fit_b, noise), _problem(table, hold_b, noise)
+
+
 def select_effects(table: GaitTable, fit_runs: Sequence[Run], hold_runs: Sequence[Run],
                    library: Sequence[str] | None = None) -> tuple[Effect, ...]:
     """The effects :func:`diagnose` would select, without its report: the forward selection
     on the fitting runs judged on the held-out ones, nothing else (no bootstrap intervals,
     shape tests or proposals). For callers that only act on the selection, e.g. the model
     correction of every punctuation, where the whole report took seconds."""
-    fit_b, hold_b = batch_of(fit_runs), batch_of(hold_runs)
-    base = tuple(table.effects)
-    noise = estimate_noise(fit_b, step_residuals(table.rows, fit_b, base))
-    return tuple(forward_select(_problem(table, fit_b, noise), _problem(table, hold_b, noise),
-                                library).selected)
+    _, fit_p, hold_p = _problems(table, batch_of(fit_runs), batch_of(hold_runs))
+    return tuple(forward_select(fit_p, hold_p, library).selected)
 
 
 def diagnose(
@@ -184,8 +189,7 @@ def diagnose(
                              f"(known: {', '.join(EFFECT_SPECS)})")
     fit_b, hold_b = batch_of(fit_runs), batch_of(hold_runs)
     base = tuple(table.effects)
-    noise = estimate_noise(fit_b, step_residuals(table.rows, fit_b, base))
-    fit_p, hold_p = _problem(table, fit_b, noise), _problem(table, hold_b, noise)
+    noise, fit_p, hold_p = _problems(table, fit_b, hold_b)
     all_b = batch_of(list(fit_runs) + list(hold_runs))
     where = where_report(all_b, step_residuals(table.rows, all_b, base))
     ends = end_errors(table.rows, all_b, base)
