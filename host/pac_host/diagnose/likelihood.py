@@ -21,6 +21,7 @@ the reference it is tested against, and stands in where numba is missing.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -66,33 +67,48 @@ def _compiled_forward():
 
 @dataclass(frozen=True)
 class Whitener:
-    """Whitening of a batch, K chunks of C steps per run: the dense matrices ``w`` (R, K, 3C,
-    3C), and the block factors ``linv`` (inverse diagonal blocks) and ``sub`` (the blocks below
-    the diagonal of the Cholesky factor), each (R, K, C, 3, 3)."""
+    """Whitening of a batch, K chunks of C steps per run, by the block factors of its
+    Cholesky factor: ``linv`` (the inverse diagonal blocks) and ``sub`` (the blocks below the
+    diagonal), each (R, K, C, 3, 3)."""
 
-    w: np.ndarray
-    steps: int  # C
+    linv: np.ndarray
+    sub: np.ndarray
     n: int  # N, the batch's padded run length
-    linv: np.ndarray | None = None
-    sub: np.ndarray | None = None
+
+    @property
+    def steps(self) -> int:  # C
+        return self.linv.shape[2]
+
+    @cached_property
+    def w(self) -> np.ndarray:
+        """The dense whitening matrices ``L^-1`` (R, K, 3C, 3C), row block by row block: the
+        reference the substitution is tested against, and the fallback without numba."""
+        r, k, c = self.linv.shape[:3]
+        w = np.zeros((r, k, c, 3, 3 * c))
+        for i in range(c):
+            if i:
+                w[:, :, i, :, : 3 * i] = -(self.linv[:, :, i] @ self.sub[:, :, i]) @ \
+                    w[:, :, i - 1, :, : 3 * i]
+            w[:, :, i, :, 3 * i : 3 * i + 3] = self.linv[:, :, i]
+        return w.reshape(r, k, 3 * c, 3 * c)
 
     def whiten(self, res: np.ndarray, dense: bool = False) -> np.ndarray:
         """Residuals (..., R, N, 3) -> whitened (..., R, K * 3C); ``dense``: by the dense
         matrices (the reference) rather than block forward substitution."""
-        r, k, c3, _ = self.w.shape
-        pad = k * self.steps - self.n
+        r, k, c = self.linv.shape[:3]
+        pad = k * c - self.n
         if pad:
             widths = [(0, 0)] * (res.ndim - 2) + [(0, pad), (0, 0)]
             res = np.pad(res, widths)
-        if dense or self.linv is None or not coverage_jit.AVAILABLE:
-            chunks = res.reshape(res.shape[:-2] + (k, c3))
+        if dense or not coverage_jit.AVAILABLE:
+            chunks = res.reshape(res.shape[:-2] + (k, 3 * c))
             out = (self.w @ chunks[..., None])[..., 0]
-            return out.reshape(out.shape[:-2] + (k * c3,))
+            return out.reshape(out.shape[:-2] + (k * 3 * c,))
         lead = res.shape[:-3]
-        blocks = np.ascontiguousarray(res, dtype=np.float64).reshape((-1, r, k, self.steps, 3))
+        blocks = np.ascontiguousarray(res, dtype=np.float64).reshape((-1, r, k, c, 3))
         out = np.empty_like(blocks)
         _compiled_forward()(self.linv, self.sub, blocks, out)
-        return out.reshape(lead + (r, k * c3))
+        return out.reshape(lead + (r, k * 3 * c))
 
     def ssr_per_run(self, res: np.ndarray) -> np.ndarray:
         """Whitened sum of squares per run (..., R)."""
@@ -128,12 +144,12 @@ def _inv_lower3(l: np.ndarray) -> np.ndarray:
 
 
 def whitener(batch: Batch, noise: NoiseFloor, start_observed: bool = True) -> Whitener:
-    """Build the whitening matrices of a batch for a given noise floor.
+    """Build the whitening of a batch for a given noise floor.
 
     Step i's residual is ``P_i e_i + Q_i e_{i+1}`` (pose noise before and after), so the
     covariance is block tridiagonal in 3 x 3 blocks: ``A_i = P_i S P_i^T + Q_i S Q_i^T`` on the
     diagonal, ``B_i = P_i S Q_{i-1}^T`` below it. Its block Cholesky factor is block
-    bidiagonal and its inverse is built row block by row block.
+    bidiagonal; its blocks, step by step, are all whitening needs.
     ``start_observed``: the start pose is itself a tracker observation (noisy), as every pose.
     """
     r, n = batch.ids.shape
@@ -168,7 +184,6 @@ def whitener(batch: Batch, noise: NoiseFloor, start_observed: bool = True) -> Wh
     b = np.where(valid & np.roll(valid, 1, axis=1), b, 0.0)
     a = a.reshape(r, k, c, 3, 3)
     b = b.reshape(r, k, c, 3, 3)
-    w = np.zeros((r, k, c, 3, 3 * c))
     linvs = np.zeros((r, k, c, 3, 3))
     subs = np.zeros((r, k, c, 3, 3))
     linv_prev = None
@@ -179,10 +194,5 @@ def whitener(batch: Batch, noise: NoiseFloor, start_observed: bool = True) -> Wh
             m = b[:, :, i] @ linv_prev.swapaxes(-1, -2)
             lii = _chol3(a[:, :, i] - m @ m.swapaxes(-1, -2))
             subs[:, :, i] = m
-        linv = _inv_lower3(lii)
-        if i:
-            w[:, :, i, :, : 3 * i] = -(linv @ m) @ w[:, :, i - 1, :, : 3 * i]
-        w[:, :, i, :, 3 * i : 3 * i + 3] = linv
-        linvs[:, :, i] = linv
-        linv_prev = linv
-    return Whitener(w.reshape(r, k, 3 * c, 3 * c), c, n, linvs, subs)
+        linvs[:, :, i] = linv_prev = _inv_lower3(lii)
+    return Whitener(linvs, subs, n)
