@@ -27,6 +27,7 @@ from pac_host import coverage_jit
 from pac_host.errors import InputError
 from pac_host.limits import SIM_BUDGET
 from pac_host.model.effects import (
+    EFFECT_SPECS,
     Effect,
     effective_rows,
     has_sequence_effects,
@@ -337,8 +338,9 @@ def simulate(
     ``rows`` is one table (32, 3) or M tables (M, 32, 3); ``genes`` is one turn cycle (9, 2) or
     P of them (P, 9, 2). The result's arrays have shape (P,) for one table, (M, P) for M.
     ``kernel``: ``"numpy"`` (the reference), ``"numba"`` (compiled, the same figures value for
-    value; only for scores without kept paths or sequence effects) or ``"auto"`` (numba where
-    it applies and is installed).
+    value; only for scores without kept paths, and with no sequence effect but the built-in
+    ``transition``) or ``"auto"`` (numba where it applies and is installed). ``battery_sag``,
+    whose moves depend on the step, and user-defined effects run in numpy.
     """
     budget = check_budget(budget)
     rows = np.asarray(rows, dtype=np.float64)
@@ -350,12 +352,13 @@ def simulate(
     n_paths = n_tables * n_genes
     run = _Runner(rows, budget, tuple(effects), np.asarray(start_pose, dtype=np.float64),
                   keep_paths)
-    compiled = not keep_paths and not run.sequence and coverage_jit.AVAILABLE
+    compiled = not keep_paths and run.compiled and coverage_jit.AVAILABLE
     if kernel == "numba" and not compiled:
-        raise ValueError("the numba kernel needs numba, no kept paths and no sequence effects")
+        raise ValueError("the numba kernel needs numba, no kept paths and no sequence effect "
+                         "but transition (battery_sag and user-defined effects run in numpy)")
     if compiled and kernel != "numpy":
         figures = coverage_jit.score_paths(genes, n_tables, run.moves, run.q0, run.p0,
-                                           run.drift, budget)
+                                           run.drift, budget, run.transition_moves(genes))
         shape = (n_genes,) if rows.ndim == 2 else (n_tables, n_genes)
         return Coverage(*(f.reshape(shape) for f in figures))
     figures = np.empty((4, n_paths), dtype=np.int64)
@@ -392,12 +395,31 @@ class _Runner:
         self.q0 = heading_rotation(start[2])
         self.p0 = start[0] + 1j * start[1]
         self.h0 = start[2]
-        if not self.sequence:
-            table = effective_rows(rows, effects).reshape(-1, 3)
+        # the compiled kernel runs table effects, a world drift and one built-in transition,
+        # whose blend depends on the gait id and the one before: tabulated per pair of ids
+        seq = [e for e in effects if EFFECT_SPECS[e.name].stage == "sequence"]
+        self.compiled = not seq or (len(seq) == 1 and seq[0].name == "transition")
+        self.alpha = seq[0].params["alpha"] if seq and self.compiled else 0.0
+        if self.compiled:
+            self.table = effective_rows(rows, effects)
+            table = self.table.reshape(-1, 3)
             self.moves = complex_moves(table)
             self.turns = table[:, 2]
             drift = world_drift(effects)
             self.drift = None if drift is None else complex(drift[0], drift[1])
+
+    def transition_moves(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """For the compiled kernel: the changes of gait id (prev, gait) the turn cycles make
+        (n, 2) and, per table and change, the complex move of the transition's blended gait
+        cycle (M * n, 2), blended from the table-effect rows as ``effects.step_moves`` blends
+        them and converted as ``integrate_path`` converts them, so the figures stay those of
+        the numpy path value for value. None without a transition (alpha 0 blends nothing)."""
+        if self.alpha <= 0:
+            return None
+        pairs = coverage_jit.transition_pairs(genes)
+        a = self.alpha
+        prev, cur = self.table[..., pairs[:, 0], :], self.table[..., pairs[:, 1], :]
+        return pairs, complex_moves((1 - a) * cur + a * prev).reshape(-1, 2)
 
     def chunk(self, genes: np.ndarray, tables: np.ndarray | None
               ) -> tuple[_Workspace, np.ndarray | None]:

@@ -5,8 +5,11 @@ The same arithmetic as the numpy simulator in :mod:`pac_host.coverage`, operatio
 positions as a running sum, the body-width test on each pose), so both give the same figures
 value for value; the numpy simulator stays the reference the tests compare this kernel with.
 It covers what the search needs: scores of turn cycles on one or many tables whose effects
-depend on the gait id alone (plus a world drift); paths with sequence effects, and kept paths,
-run in numpy.
+depend on the gait id alone (plus a world drift), and the built-in ``transition`` effect, whose
+blended moves depend on the gait id and the one before it: the caller tabulates them per pair of
+gait ids with the same conversion the numpy simulator uses, and the kernel looks them up.
+Kept paths, and other sequence effects (``battery_sag``, whose moves depend on the step, and
+user-defined ones), run in numpy.
 
 Set ``PAC_KERNEL=numpy`` in the environment to run everything in numpy.
 """
@@ -108,17 +111,43 @@ def _shared_steps(a: np.ndarray, b: np.ndarray, budget: int) -> int:
     return min(steps, budget)
 
 
+def _transition_pairs(genes: np.ndarray, out: np.ndarray) -> None:
+    """Mark in ``out`` (32 * 32,) at ``prev * 32 + gait`` each change of gait id that turn
+    cycles ``genes`` (P, G, 2) can make: from each gene with repetitions to the next one, the
+    last to the first, skipping genes without repetitions."""
+    for k in range(genes.shape[0]):
+        g = genes[k]
+        first = prev = -1
+        for j in range(g.shape[0]):
+            if g[j, 1] == 0:
+                continue
+            if first < 0:
+                first = g[j, 0]
+            elif g[j, 0] != prev:
+                out[prev * 32 + g[j, 0]] = True
+            prev = g[j, 0]
+        if first >= 0 and first != prev:
+            out[prev * 32 + first] = True
+
+
 def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.ndarray,
-                 q0: complex, p0: complex, drift: complex, budget: int) -> np.ndarray:
+                 q0: complex, p0: complex, drift: complex, budget: int, slots: np.ndarray,
+                 n_slots: int, blend_rot: np.ndarray, blend_disp: np.ndarray) -> np.ndarray:
     """Figures (4, n_tables * P) of turn cycles ``genes`` (P, G, 2) on tables whose moves are
     ``rot`` and ``disp`` (n_tables * 32,): path k runs genes k % P on table k // P.
+
+    With ``n_slots`` > 0, a gait cycle whose gait id differs from the one just before it in the
+    path (not the path's first) moves by ``blend_rot`` and ``blend_disp`` (n_tables * n_slots,)
+    instead, at ``slots[prev * 32 + gait]`` of its table: a transition's blended move.
 
     Each path starts where it parts from the path before it on the same table: the gait
     cycles they walk alike are not walked again (a search's batch changes one gene and keeps
     those before it, and lists a gene's repetitions in order, so most of each path is shared).
-    The pose and loop position after every gait cycle of the last path are kept for this."""
+    The pose and loop position after every gait cycle of the last path are kept for this (the
+    gait id walked last, which a transition needs, is that of the gene there)."""
     n_genes = genes.shape[0]
     n_paths = n_tables * n_genes
+    blend = n_slots > 0
     out = np.empty((4, n_paths), dtype=np.int64)
     blocks = np.empty(budget + 1, dtype=np.int64)
     qs = np.empty(budget + 1, dtype=np.complex128)
@@ -132,6 +161,7 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
     for k in range(n_paths):
         g = genes[k % n_genes]
         base = (k // n_genes) * 32
+        blend_base = (k // n_genes) * n_slots
         loop = 0
         for j in range(g.shape[0]):
             loop += g[j, 1]
@@ -140,12 +170,14 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
             s = _shared_steps(g, genes[k % n_genes - 1], budget)
         q = qs[s]
         p = ps[s]
+        prev = -1  # the gait id walked last: none at the start
         if s == 0:
             j = 0
             left = g[0, 1]
         else:
             j = js[s]
             left = g[j, 1] - used[s]
+            prev = g[j, 0]
         for t in range(s + 1, budget + 1):
             if loop == 0:  # a turn cycle without repetitions stands still
                 r = 1.0 + 0.0j
@@ -156,8 +188,15 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
                     j = (j + 1) % g.shape[0]
                     left = g[j, 1]
                 left -= 1
-                r = rot[base + g[j, 0]]
-                d = disp[base + g[j, 0]]
+                gait = g[j, 0]
+                if blend and gait != prev and prev >= 0:
+                    e = blend_base + slots[prev * 32 + gait]
+                    r = blend_rot[e]
+                    d = blend_disp[e]
+                else:
+                    r = rot[base + gait]
+                    d = disp[base + gait]
+                prev = gait
                 dr = drift
             step = d * q
             q = q * r
@@ -173,7 +212,7 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
 
 def _compile():
     """The kernel compiled (cached on disk by numba between processes)."""
-    global _compiled, _block, _figures, _shared_steps
+    global _compiled, _block, _figures, _shared_steps, _transition_pairs
     if _compiled is None:
         import numba
 
@@ -181,16 +220,45 @@ def _compile():
         _block = numba.njit(**opts)(_block)
         _figures = numba.njit(**opts)(_figures)
         _shared_steps = numba.njit(**opts)(_shared_steps)
+        _transition_pairs = numba.njit(**opts)(_transition_pairs)
         _compiled = numba.njit(**opts)(_score_paths)
     return _compiled
 
 
+def transition_pairs(genes: np.ndarray) -> np.ndarray:
+    """The changes of gait id (prev, gait) that turn cycles (P, G, 2) can make within their
+    loops, as (n, 2) pairs in increasing order of ``prev * 32 + gait``."""
+    _compile()
+    mark = np.zeros(32 * 32, dtype=np.bool_)
+    _transition_pairs(np.ascontiguousarray(genes, dtype=np.int64), mark)
+    return np.stack(np.divmod(np.flatnonzero(mark), 32), axis=-1)
+
+
 def score_paths(genes: np.ndarray, n_tables: int, moves: np.ndarray, q0: complex, p0: complex,
-                drift: complex | None, budget: int) -> np.ndarray:
+                drift: complex | None, budget: int,
+                transition: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Figures (4, n_tables * P) of turn cycles (P, G, 2) on tables with complex ``moves``
     (n_tables * 32, 2) as ``kinematics.complex_moves`` gives them; path k runs turn cycle
-    k % P on table k // P."""
+    k % P on table k // P.
+
+    ``transition``: (pairs, blended) for the ``transition`` effect: the changes of gait id
+    (n, 2) the turn cycles make (at least those of :func:`transition_pairs`) and, for each
+    table and pair, the complex move (n_tables * n, 2) of the blend the first gait cycle after
+    that change makes (None: no transition effect)."""
+    if transition is None:
+        slots = np.zeros(0, dtype=np.int64)
+        n_slots = 0
+        blended = np.zeros((0, 2), dtype=np.complex128)
+    else:
+        pairs, blended = transition
+        n_slots = len(pairs)
+        slots = np.full(32 * 32, -1, dtype=np.int64)
+        slots[pairs[:, 0] * 32 + pairs[:, 1]] = np.arange(n_slots)
+        if blended.shape != (n_tables * n_slots, 2):
+            raise ValueError(f"blended moves {blended.shape}, expected {(n_tables * n_slots, 2)}")
     return _compile()(np.ascontiguousarray(genes, dtype=np.int64), n_tables,
                         np.ascontiguousarray(moves[:, 1]), np.ascontiguousarray(moves[:, 0]),
                         complex(q0), complex(p0), 0j if drift is None else complex(drift),
-                        int(budget))
+                        int(budget), slots, n_slots,
+                        np.ascontiguousarray(blended[:, 1]),
+                        np.ascontiguousarray(blended[:, 0]))

@@ -6,8 +6,11 @@ import numpy as np
 import pytest
 
 from pac_host import cga, coverage_jit
-from pac_host.coverage import simulate
-from pac_host.model import measured_table, parse_effect, shifted_table
+from pac_host.coverage import START_POSE, _Runner, expand, simulate
+from pac_host.model import measured_table, parse_effect, shifted_table, step_moves
+from pac_host.model.effects import ParamSpec, register_effect
+from pac_host.model.effects_module import forget_user_effects
+from pac_host.model.kinematics import complex_moves
 
 pytestmark = pytest.mark.skipif(not coverage_jit.AVAILABLE, reason="numba not installed")
 FIGURES = ("blocks_covered", "blocks_covered_once", "fitness", "repeat_visits")
@@ -52,9 +55,11 @@ def test_kernel_equals_numpy_on_many_tables_and_with_effects():
 
 def test_auto_uses_numpy_where_the_kernel_does_not_apply():
     pop = _population(np.random.default_rng(2), 30)
-    seq = [parse_effect("transition:alpha=0.3")]
-    with pytest.raises(ValueError):
-        simulate(measured_table().rows, pop, 100, seq, kernel="numba")
+    for seq in (["battery_sag:beta=0.002"], ["transition:alpha=0.3", "battery_sag:beta=0.002"],
+                ["transition:alpha=0.3", "transition:alpha=0.5"]):
+        with pytest.raises(ValueError):
+            simulate(measured_table().rows, pop, 100, [parse_effect(e) for e in seq],
+                     kernel="numba")
     with pytest.raises(ValueError):
         simulate(measured_table().rows, pop, 100, keep_paths=True, kernel="numba")
     kept = simulate(measured_table().rows, pop, 100, keep_paths=True)
@@ -82,3 +87,133 @@ def test_kernel_equals_numpy_on_batches_that_share_their_first_genes(budget):
                   simulate(shifted_table().rows, batch, budget, kernel="numpy"))
             _same(simulate(models, batch[:70], budget, drift, kernel="numba"),
                   simulate(models, batch[:70], budget, drift, kernel="numpy"))
+
+
+def _transition_population(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Random turn cycles, and ones where a gait id follows itself (no change, no blend):
+    in the next gene, across a gene without repetitions, and from the last gene to the first."""
+    pop = _population(rng, n)
+    pop[16:40, 1, 0] = pop[16:40, 0, 0]
+    pop[40:64, 1, 1] = 0
+    pop[40:64, 2, 0] = pop[40:64, 0, 0]
+    pop[64:88, 8, 0] = pop[64:88, 0, 0]
+    pop[88:112, 0, 1] = 0  # the loop's first gene skipped: it starts on the second
+    return pop
+
+
+TRANSITION_EFFECTS = [
+    [],
+    ["turn_shift:k=2", "yaw_bias:delta=-0.7"],
+    ["floor_slope:s=0.8,theta=200"],
+    # listed out of order: the effects run in the canonical order whatever order they come in
+    ["floor_slope:s=-0.6,theta=40", "lateral_slip:gamma=0.05", "turn_shift:k=-3",
+     "stride_scale:a=1.2", "turn_scale:c=0.9"],
+]
+
+
+@pytest.mark.parametrize("alpha", [0.0, 0.05, 0.4, 0.75, 1.0])
+@pytest.mark.parametrize("others", range(len(TRANSITION_EFFECTS)))
+def test_kernel_equals_numpy_with_transition(alpha, others):
+    """The transition blends the first gait cycle after a change of gait id with the gait
+    before it; the kernel looks the blend up per pair of ids, on one and on many tables."""
+    rng = np.random.default_rng(int(alpha * 100) + 10 * others)
+    effects = [parse_effect(f"transition:alpha={alpha}")]
+    effects += [parse_effect(e) for e in TRANSITION_EFFECTS[others]]
+    if others % 2:
+        effects.reverse()
+    pop = _transition_population(rng, 1500)
+    for budget in (1, 2, 200):
+        _same(simulate(shifted_table().rows, pop, budget, effects, kernel="numba"),
+              simulate(shifted_table().rows, pop, budget, effects, kernel="numpy"))
+    models = measured_table().rows + rng.normal(0, 0.6, (6, 32, 3))
+    _same(simulate(models, pop[:300], 200, effects, kernel="numba"),
+          simulate(models, pop[:300], 200, effects, kernel="numpy"))
+    _same(simulate(models, pop[:3], 200, effects, kernel="numba"),  # few changes of gait id
+          simulate(models, pop[:3], 200, effects, kernel="numpy"))
+
+
+def test_transition_changes_the_figures_and_auto_runs_it_in_the_kernel(monkeypatch):
+    """The blend is not a no-op the comparison could pass by (the figures move with alpha),
+    and ``kernel="auto"`` takes the compiled path for it."""
+    pop = _transition_population(np.random.default_rng(5), 2000)
+    rows = shifted_table().rows
+    plain = simulate(rows, pop, 200, kernel="numpy").score()
+    for alpha in (0.3, 1.0):
+        blended = simulate(rows, pop, 200, [parse_effect(f"transition:alpha={alpha}")],
+                           kernel="numpy").score()
+        assert (blended != plain).mean() > 0.2
+    calls = []
+    score_paths = coverage_jit.score_paths
+    monkeypatch.setattr(coverage_jit, "score_paths",
+                        lambda *a, **k: calls.append(1) or score_paths(*a, **k))
+    effects = [parse_effect("transition:alpha=0.3"), parse_effect("yaw_bias:delta=0.5")]
+    _same(simulate(rows, pop, 200, effects), simulate(rows, pop, 200, effects, kernel="numpy"))
+    assert calls == [1]
+    simulate(rows, pop, 200, [*effects, parse_effect("battery_sag:beta=0.001")])
+    assert calls == [1]  # battery_sag runs in numpy
+
+
+def test_transition_table_holds_every_change_and_the_numpy_paths_moves_bit_for_bit():
+    """The pairs cover every change of gait id the paths make, and each tabulated move is the
+    one the numpy path converts from ``step_moves``' blend, to the last bit (figures are
+    integers and rarely show a last-bit change)."""
+    rng = np.random.default_rng(9)
+    pop = _transition_population(rng, 400)
+    ids, still = expand(pop, 300)
+    ids = ids[~still]
+    change = ids[:, 1:] != ids[:, :-1]
+    walked = set(zip(ids[:, :-1][change].tolist(), ids[:, 1:][change].tolist(), strict=True))
+    pairs = coverage_jit.transition_pairs(pop)
+    assert walked <= set(map(tuple, pairs.tolist()))
+    assert len(pairs) > 200
+    rows = measured_table().rows + rng.normal(0, 0.6, (3, 32, 3))
+    effects = tuple(parse_effect(e) for e in ("lateral_slip:gamma=0.05", "transition:alpha=0.37",
+                                              "turn_shift:k=2", "yaw_bias:delta=-0.7"))
+    for table in (rows, rows[0]):
+        run = _Runner(table, 300, effects, np.array(START_POSE), False)
+        got_pairs, blended = run.transition_moves(pop)
+        np.testing.assert_array_equal(got_pairs, pairs)
+        walks = np.broadcast_to(pairs, table.shape[:-2] + pairs.shape)
+        body, _ = step_moves(table, walks, effects)  # two gait cycles: pair[0], then pair[1]
+        np.testing.assert_array_equal(blended, complex_moves(body[..., 1, :]).reshape(-1, 2))
+
+
+@pytest.mark.parametrize("budget", [3, 60, 200])
+def test_kernel_equals_numpy_with_transition_on_batches_that_share_their_first_genes(budget):
+    """A path resumes where it parts from the one before it: the gait id walked there decides
+    whether its next gait cycle blends. Single-gene neighbourhoods, on one and many tables."""
+    from pac_host.search.neighbours import neighbours
+
+    rng = np.random.default_rng(budget + 11)
+    models = measured_table().rows + rng.normal(0, 0.6, (3, 32, 3))
+    pop = _transition_population(rng, 120)
+    for alpha, extra in ((0.4, []), (1.0, ["turn_shift:k=1", "floor_slope:s=0.8,theta=200"])):
+        effects = [parse_effect(f"transition:alpha={alpha}")] + [parse_effect(e) for e in extra]
+        for x in pop[[0, 8, 16, 20, 40, 64, 88, 112, 113]]:
+            batch = np.concatenate([x[None], neighbours(x, budget)])
+            _same(simulate(shifted_table().rows, batch, budget, effects, kernel="numba"),
+                  simulate(shifted_table().rows, batch, budget, effects, kernel="numpy"))
+            _same(simulate(models, batch[::7], budget, effects, kernel="numba"),
+                  simulate(models, batch[::7], budget, effects, kernel="numpy"))
+
+
+@pytest.fixture
+def user_effect():
+    register_effect("halve", [ParamSpec("f", 0.0, 1.0, neutral=1.0)],
+                    lambda body, ctx, f: np.where(ctx.prev_ids[..., None] >= 0, f * body, body))
+    yield
+    forget_user_effects()
+
+
+def test_a_user_defined_effect_runs_in_numpy(user_effect, monkeypatch):
+    pop = _population(np.random.default_rng(4), 200)
+    rows = shifted_table().rows
+    for effects in ([parse_effect("halve:f=0.5")],
+                    [parse_effect("transition:alpha=0.3"), parse_effect("halve:f=0.5")]):
+        with pytest.raises(ValueError):
+            simulate(rows, pop, 100, effects, kernel="numba")
+        monkeypatch.setattr(coverage_jit, "score_paths", None)  # the kernel is not called
+        auto = simulate(rows, pop, 100, effects)
+        monkeypatch.undo()
+        _same(auto, simulate(rows, pop, 100, effects, kernel="numpy"))
+        assert (auto.score() != simulate(rows, pop, 100, effects[:-1]).score()).any()
