@@ -1,7 +1,8 @@
 """Coverage simulator throughput, PAL punctuation wall time, and the 30-seed experiment.
 
 Evaluations per second are measured for the compiled kernel and for the numpy simulator, the
-reference (target: the kernel at least 3 times faster). Targets (issue: foundation): >= 100,000
+reference (target: the kernel at least 3 times faster), also on a model with a transition
+effect, which the kernel compiles. Targets (issue: foundation): >= 100,000
 turn-cycle evaluations per second on one core at a 200-cycle budget; one punctuation (40 CGA
 generations + 40 model-GA generations + the 3 robot tests) under 0.5 s; the 30-seed,
 two-method, 1000-generation experiment (paper profile) under 10 minutes with --jobs 2.
@@ -23,6 +24,7 @@ from pac_host import cga, pal
 from pac_host.cga import random_population
 from pac_host.coverage import parse_turn_cycle, simulate
 from pac_host.model import measured_table, shifted_table
+from pac_host.model.effects import Effect
 from pac_host.search.neighbours import neighbours
 
 
@@ -50,16 +52,20 @@ def evals_per_second(quick: bool, kernel: str = "auto") -> dict:
     # found by optimize (the kernel walks what consecutive paths share once)
     best = parse_turn_cycle("19:17,23:32,21:18,12:38,2:13,12:23,21:15,11:23,8:13")
     batches = [neighbours(best, 200, only=j) for j in range(9)]
-    cases = (("random", rows, random_pop), ("cga_population", rows, np.tile(evolved, (8, 1, 1))),
-             ("models_64x3", models, random_pop[:3]),
-             ("search_neighbourhoods", shifted_table().rows, batches))
-    for name, table, pop in cases:
+    # and a model with a sequence effect the kernel compiles (a transition between gaits)
+    transition = (Effect("transition", {"alpha": 0.3}),)
+    cases = (("random", rows, random_pop, ()),
+             ("cga_population", rows, np.tile(evolved, (8, 1, 1)), ()),
+             ("models_64x3", models, random_pop[:3], ()),
+             ("search_neighbourhoods", shifted_table().rows, batches, ()),
+             ("random_transition", rows, random_pop, transition))
+    for name, table, pop, fx in cases:
         if isinstance(pop, list):
             t = _times(lambda t_=table, p=pop: [simulate(t_, b, 200, kernel=kernel) for b in p],
                        3 if quick else 20)
             n = sum(len(b) for b in pop)
         else:
-            t = _times(lambda t_=table, p=pop: simulate(t_, p, 200, kernel=kernel),
+            t = _times(lambda t_=table, p=pop, e=fx: simulate(t_, p, 200, e, kernel=kernel),
                        5 if quick else 60)
             n = pop.shape[0] * (table.shape[0] if table.ndim == 3 else 1)
         # the machine's other tenants make single timings noisy: report the best and the median
