@@ -27,10 +27,9 @@ from pac_host import coverage_jit
 from pac_host.errors import InputError
 from pac_host.limits import SIM_BUDGET
 from pac_host.model.effects import (
-    EFFECT_SPECS,
     Effect,
     effective_rows,
-    has_sequence_effects,
+    sequence_effects,
     step_moves,
     world_drift,
 )
@@ -390,14 +389,14 @@ class _Runner:
     def __init__(self, rows: np.ndarray, budget: int, effects: tuple[Effect, ...],
                  start: np.ndarray, keep: bool) -> None:
         self.rows, self.budget, self.effects, self.keep = rows, budget, effects, keep
-        self.sequence = has_sequence_effects(effects)
         self.start = start
         self.q0 = heading_rotation(start[2])
         self.p0 = start[0] + 1j * start[1]
         self.h0 = start[2]
         # the compiled kernel runs table effects, a world drift and one built-in transition,
         # whose blend depends on the gait id and the one before: tabulated per pair of ids
-        seq = [e for e in effects if EFFECT_SPECS[e.name].stage == "sequence"]
+        seq = sequence_effects(effects)
+        self.sequence = bool(seq)
         self.compiled = not seq or (len(seq) == 1 and seq[0].name == "transition")
         self.alpha = seq[0].params["alpha"] if seq and self.compiled else 0.0
         if self.compiled:

@@ -222,9 +222,9 @@ def gather_rows(rows: np.ndarray, gait_ids: np.ndarray) -> np.ndarray:
     return np.take(rows.reshape(-1, rows.shape[-1]), gait_ids + base, axis=0)
 
 
-def has_sequence_effects(effects: Iterable[Effect]) -> bool:
-    """True when some effect depends on the executed sequence, not just on the gait id."""
-    return any(EFFECT_SPECS[e.name].stage == "sequence" for e in effects)
+def sequence_effects(effects: Iterable[Effect]) -> list[Effect]:
+    """The effects that depend on the executed sequence, not just on the gait id."""
+    return [e for e in effects if EFFECT_SPECS[e.name].stage == "sequence"]
 
 
 def world_drift(effects: Iterable[Effect]) -> np.ndarray | None:
