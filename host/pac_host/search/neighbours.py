@@ -46,20 +46,37 @@ def slots(genes: np.ndarray, budget: int) -> np.ndarray:
     return np.flatnonzero(reached & (~empty | first_empty))
 
 
+def value_indices(gene: np.ndarray, small: bool = False) -> np.ndarray:
+    """Indices into the table of gene values of every value a gene (id, repetitions) can
+    change to, in the table's order; with ``small``, only those keeping its id or its
+    repetitions (for a non-empty gene)."""
+    gid, reps = int(gene[0]), int(gene[1])
+    own = len(_VALUES) - 1 if reps == 0 else gid * MAX_REPS + reps - 1
+    if not (small and reps > 0):
+        return np.delete(np.arange(len(_VALUES)), own)
+    same_reps = np.arange(MAX_GAIT_ID + 1) * MAX_REPS + reps - 1
+    same_id = gid * MAX_REPS + np.arange(MAX_REPS)
+    idx = np.union1d(same_reps, same_id)
+    if gid == 0:
+        idx = np.append(idx, len(_VALUES) - 1)  # the empty gene keeps id 0
+    return idx[idx != own]
+
+
+def gene_changes(genes: np.ndarray, j: int, idx: np.ndarray) -> np.ndarray:
+    """Copies of a canonical turn cycle with gene ``j`` set to each value ``idx`` names."""
+    block = np.repeat(genes[None], len(idx), axis=0)
+    block[:, j] = _VALUES[idx]
+    return block
+
+
 def neighbours(genes: np.ndarray, budget: int, only: int | None = None,
                small: bool = False) -> np.ndarray:
     """All distinct single-gene changes of one turn cycle (9, 2), as a (N, 9, 2) array; with
     ``only``, the changes of that gene alone; with ``small``, only those that keep the gene's
     id or its repetitions (at most 94 a gene instead of 2,016)."""
     genes = canonical(genes, budget)
-    parts = []
-    for j in slots(genes, budget) if only is None else [only]:
-        keep = np.any(_VALUES != genes[j], axis=1)
-        if small and genes[j, 1] > 0:
-            keep &= np.any(_VALUES == genes[j], axis=1)
-        block = np.repeat(genes[None], int(keep.sum()), axis=0)
-        block[:, j] = _VALUES[keep]
-        parts.append(block)
+    parts = [gene_changes(genes, j, value_indices(genes[j], small))
+             for j in (slots(genes, budget) if only is None else [only])]
     if not parts:
         return np.empty((0,) + genes.shape, dtype=np.int64)
     return np.concatenate(parts)
