@@ -44,6 +44,17 @@ def test_neighbourhood_is_every_distinct_single_gene_change():
                 != [0, 0]).any()
 
 
+def test_small_changes_keep_the_gene_id_or_its_repetitions():
+    x = canonical(parse_turn_cycle("0:5,7:12,3:40"), 200)
+    for j in range(3):
+        changed = neighbours(x, 200, only=j, small=True)[:, j]
+        assert ((changed[:, 0] == x[j, 0]) | (changed[:, 1] == x[j, 1])).all()
+        assert len(np.unique(changed, axis=0)) == len(changed)
+        # 31 other ids, 62 other repetitions, and the empty gene if the id is already 0
+        assert len(changed) == 31 + 62 + (x[j, 0] == 0)
+        assert len(neighbours(x, 200, only=j)) == 32 * 63
+
+
 def test_climb_ends_at_a_local_optimum():
     rows = measured_table().rows
     obj = Objective(rows, 200)
@@ -52,6 +63,29 @@ def test_climb_ends_at_a_local_optimum():
     assert score == _score(rows, best)[0]
     assert _score(rows, neighbours(best, 200)).max() <= score
     assert _score(rows, pair_neighbours(best, 200)).max() <= score
+
+
+def test_a_sampled_climb_is_cheaper_and_ends_where_no_cheap_or_paired_change_improves():
+    """A climb that scores a random share of each gene's any-change neighbourhood spends
+    fewer evaluations; it still ends where no change of one gene's id or repetitions alone and
+    no paired repetition change is better, and climbs from every start."""
+    rows = measured_table().rows
+    starts = cga.random_population(np.random.default_rng(8), 4)
+    for k, x in enumerate(starts):
+        costs = []
+        for sample in (1.0, 0.1):
+            obj = Objective(rows, 200)
+            x0 = int(obj(x[None])[0])
+            best, score = climb(x, x0, obj, np.random.default_rng(k), sample)
+            costs.append(obj.evaluations)
+            assert score == _score(rows, best)[0] and score > x0
+        small = np.concatenate([neighbours(best, 200, only=j, small=True)
+                                for j in range(9) if (best[j] != 0).any()])
+        assert _score(rows, small).max() <= score
+        assert _score(rows, pair_neighbours(best, 200)).max() <= score
+        assert costs[1] < costs[0], costs
+    with pytest.raises(ValueError, match="sample"):
+        climb(starts[0], 0, Objective(rows, 200), np.random.default_rng(0), 0.0)
 
 
 def test_objective_counts_evaluations_exactly_and_stops():
@@ -126,6 +160,8 @@ def test_optimize_command_prints_and_writes_the_result(tmp_path):
     (["--evaluations", "10", "--budget", "-1"], "--budget must be 1..65535"),
     (["--evaluations", "10", "--budget", "10000000"], "--budget must be 1..65535"),
     (["--evaluations", "10", "--chains", "0"], "--chains must be 1..1024"),
+    (["--evaluations", "10", "--sample", "0"], "--sample"),
+    (["--evaluations", "10", "--sample", "1.5"], "--sample"),
     (["--evaluations", "ten"], "ten"),
     (["--evaluations", "10", "--table", "nowhere.json"], "nowhere.json"),
 ])
@@ -186,9 +222,9 @@ def test_a_carried_chain_climbs_again_only_when_the_model_has_changed(monkeypatc
     starts = []
     real = local.climb
 
-    def recorded(x, score, objective, rng=None):
+    def recorded(x, score, objective, rng=None, sample=1.0):
         starts.append(canonical(x, objective.budget))
-        return real(x, score, objective, rng)
+        return real(x, score, objective, rng, sample)
 
     monkeypatch.setattr(local, "climb", recorded)
     for table, climbs_first in ((rows, False), (rows + 0.5, True)):

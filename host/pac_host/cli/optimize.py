@@ -12,6 +12,7 @@ from pac_host.cli.options import Bounded, effect_option, load_with_effects, tabl
 from pac_host.coverage import DEFAULT_BUDGET
 from pac_host.errors import InputError
 from pac_host.files import write_atomic
+from pac_host.search.local import SAMPLE
 from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 
 
@@ -26,6 +27,10 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 @click.option("--chains", default=1, show_default=True, type=Bounded(limits.CHAINS),
               help="Independent search chains; the result depends on the seed and the chains, "
                    "not on --jobs.")
+@click.option("--sample", default=SAMPLE, show_default=True,
+              type=click.FloatRange(0, 1, min_open=True),
+              help="Share of a gene's 2,016 changes a climb scores each time it looks at the "
+                   "gene (1: every change, an exact local optimum).")
 @click.option("--seed", default=0, show_default=True, type=int)
 @click.option("--jobs", default=1, show_default=True, type=click.IntRange(1, 64),
               help="Processes running chains side by side.")
@@ -33,8 +38,8 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
               help="Write the result, each chain's progress and the settings here.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
               help="Draw the best fitness against seconds to this PNG.")
-def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains, seed, jobs,
-                 json_out, plot) -> None:
+def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains, sample, seed,
+                 jobs, json_out, plot) -> None:
     """Find the best turn cycle on a model: iterated local search with restarts.
 
     Prints the best turn cycle, its coverage figures (as `simulate` gives them) and how the
@@ -45,7 +50,7 @@ def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains,
     if seconds is None and evaluations is None:
         seconds = 60.0
     cfg = OptimizeConfig(budget=budget, seconds=seconds, evaluations=evaluations, chains=chains,
-                         seed=seed)
+                         seed=seed, sample=sample)
     cfg.check()
     table = load_with_effects(table_spec, effect_specs)
     if json_out is not None and json_out.is_dir():

@@ -18,7 +18,15 @@ import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, fitness_of_score, simulate
 from pac_host.model.effects import Effect
-from pac_host.search.neighbours import _VALUES, canonical, neighbours, pair_neighbours, slots
+from pac_host.search.neighbours import (
+    _VALUES,
+    canonical,
+    gene_changes,
+    neighbours,
+    pair_neighbours,
+    slots,
+    value_indices,
+)
 
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 
@@ -83,14 +91,20 @@ class Objective:
 
 
 def climb(x: np.ndarray, score: int, objective: Objective,
-          rng: np.random.Generator | None = None) -> tuple[np.ndarray, int]:
+          rng: np.random.Generator | None = None,
+          sample: float = 1.0) -> tuple[np.ndarray, int]:
     """Local search over single-gene changes until none scores higher.
 
     Without ``rng``: best improvement over the whole neighbourhood at each move. With it:
     the genes are visited in a random order, a gene's changes evaluated in one batch and the
     best taken as soon as it improves, the cheap changes (the gene's id or repetitions alone)
-    before any change of the gene, and paired repetition changes last. Returns the local
-    optimum (canonical) and its score."""
+    before any change of the gene, and paired repetition changes last. With ``sample`` < 1
+    (and ``rng``) each look at a gene's any-change neighbourhood (2,016 changes) scores a fresh
+    random share of it, so the climb ends at a point no cheap, paired or sampled change
+    improves: a cheaper, approximate local optimum (:data:`SAMPLE`). Returns the local optimum
+    (canonical) and its score."""
+    if not 0 < sample <= 1:
+        raise ValueError(f"sample must be in (0, 1], got {sample}")
     budget = objective.budget
     x = canonical(x, budget)
     if rng is None:
@@ -115,8 +129,15 @@ def climb(x: np.ndarray, score: int, objective: Objective,
         if move is None:
             return x, score
         tier, j = move
-        n = (pair_neighbours(x, budget) if tier == 2
-             else neighbours(x, budget, only=j, small=tier == 0))
+        if tier == 2:
+            n = pair_neighbours(x, budget)
+        elif tier == 1 and sample < 1:
+            idx = value_indices(x[j])
+            idx = idx[np.sort(rng.choice(len(idx), size=max(1, int(len(idx) * sample)),
+                                         replace=False))]
+            n = gene_changes(x, j, idx)
+        else:
+            n = neighbours(x, budget, only=j, small=tier == 0)
         s = objective(n)
         i = int(np.argmax(s)) if len(s) else 0
         if len(s) and s[i] > score:
@@ -134,6 +155,13 @@ def kick(x: np.ndarray, rng: np.random.Generator, genes: int, budget: int) -> np
         y[j] = _VALUES[rng.integers(len(_VALUES))]
     return y
 
+
+# The share of a gene's any-change neighbourhood a search's climb scores each time it looks
+# (:func:`climb`). Measured (3 million evaluations a run, five tables, seeds 0-11): mean final
+# fitness 30.8 with the whole neighbourhood, 32.1 with a quarter, 32.6 with a tenth. A climb
+# then costs a fraction of the evaluations, so a chain makes several times the kicks; the
+# changes a look skips are drawn afresh at the next look.
+SAMPLE = 0.1
 
 RESTART_POPULATION, RESTART_GENERATIONS = 64, 150  # the CGA run that starts each restart
 # Start k's CGA population has its random repetitions divided by LOOP_DIVISORS[k % len]. A loop
@@ -169,7 +197,7 @@ class Chain:
     starts: int = 0  # starting points so far, a given one included (picks the loop divisor)
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
-            kick_genes: int = 2) -> None:
+            kick_genes: int = 2, sample: float = SAMPLE) -> None:
         """Search until the objective's budget or deadline is spent. A carried-on chain first
         re-scores and climbs its local optimum if the objective's model has changed."""
         model = objective.fingerprint()
@@ -185,11 +213,11 @@ class Chain:
                 else:
                     x, score = self.x, int(objective(self.x[None])[0])
                 if self.model != model:
-                    x, score = climb(x, score, objective, rng)
+                    x, score = climb(x, score, objective, rng, sample)
                     self.x, self.score, self.model = x, score, model
                 while self.stale < patience:
                     y = kick(x, rng, kick_genes, objective.budget)
-                    y, s = climb(y, int(objective(y[None])[0]), objective, rng)
+                    y, s = climb(y, int(objective(y[None])[0]), objective, rng, sample)
                     self.stale = 0 if s > score else self.stale + 1
                     if fitness_of_score(s) >= fitness_of_score(score):  # plateaus are crossed
                         x, score = y, s
@@ -211,11 +239,13 @@ class Chain:
 
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
-             kick_genes: int = 2, start: np.ndarray | None = None) -> None:
+             kick_genes: int = 2, start: np.ndarray | None = None,
+             sample: float = SAMPLE) -> None:
     """Iterated local search from ``start`` (or the best of a short CGA run), restarted whenever
     it stalls for ``patience`` kicks, until the budget runs out (a :class:`Chain` run to the
     end); the best is ``objective.best``."""
-    Chain(start, starts=int(start is not None)).run(objective, rng, patience, kick_genes)
+    Chain(start, starts=int(start is not None)).run(objective, rng, patience, kick_genes,
+                                                    sample)
 
 
 def cga_start(objective: Objective, rng: np.random.Generator,

@@ -1,8 +1,9 @@
 """``pac-host optimize``: the strongest search for a turn cycle on a model that the project has.
 
 Iterated local search with restarts (:mod:`pac_host.search.local`): climb single-gene changes
-until none improves, kick two genes and climb again, moving on to any local optimum at least as
-fit, and restart from a random turn cycle after ``patience`` kicks in a row without progress.
+(a fresh random tenth of a gene's any-change neighbourhood each look) until none improves, kick
+two genes and climb again, moving on to any local optimum at least as fit, and restart from a
+short CGA run after ``patience`` kicks in a row without progress.
 The search runs as ``chains`` independent chains, each seeded from ``SeedSequence([seed,
 chain])``; ``jobs`` processes run them side by side, so for a budget in evaluations the result
 depends on the seed alone. A budget in seconds is split among the chains by wall time (each
@@ -28,7 +29,7 @@ from pac_host.coverage import (
 )
 from pac_host.errors import InputError
 from pac_host.model.effects import Effect
-from pac_host.search.local import Objective, restarts
+from pac_host.search.local import SAMPLE, Objective, restarts
 
 MAX_SECONDS = 7 * 24 * 3600.0
 
@@ -44,6 +45,7 @@ class OptimizeConfig:
     seed: int = 0
     patience: int = 50
     kick_genes: int = 2
+    sample: float = SAMPLE  # share of a gene's any-change neighbourhood a climb scores a look
 
     def check(self) -> None:
         if self.seconds is None and self.evaluations is None:
@@ -56,6 +58,8 @@ class OptimizeConfig:
         limits.CHAINS.check(self.chains, "--chains")
         if self.patience < 1 or not 1 <= self.kick_genes <= MAX_GENES:
             raise InputError("patience must be >= 1 and kick genes 1..9")
+        if not 0 < self.sample <= 1:
+            raise InputError(f"--sample must be in (0, 1], got {self.sample}")
 
 
 def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig, chain: int,
@@ -66,7 +70,7 @@ def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig
     t0 = time.perf_counter()
     objective = Objective(rows, cfg.budget, effects, limit=evaluations,
                           deadline=None if seconds is None else t0 + seconds)
-    restarts(objective, rng, cfg.patience, cfg.kick_genes)
+    restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample)
     return {"chain": chain, "genes": objective.best.tolist(), "score": objective.best_score,
             "evaluations": objective.evaluations,
             "seconds": round(time.perf_counter() - t0, 3),
