@@ -217,3 +217,22 @@ def test_a_user_defined_effect_runs_in_numpy(user_effect, monkeypatch):
         monkeypatch.undo()
         _same(auto, simulate(rows, pop, 100, effects, kernel="numpy"))
         assert (auto.score() != simulate(rows, pop, 100, effects[:-1]).score()).any()
+
+
+@pytest.mark.parametrize("effects", [(), ("turn_shift:k=1",), ("transition:alpha=0.4",),
+                                     ("battery_sag:beta=0.002",),
+                                     ("floor_slope:s=0.5,theta=60", "yaw_bias:delta=1")])
+def test_a_scorer_gives_simulates_scores_batch_after_batch(effects):
+    """A search's scorer sets a model up once and scores many batches: each batch's scores are
+    simulate's, value for value, whichever kernel the model's effects allow (and none for an
+    empty batch)."""
+    from pac_host.coverage import Scorer
+
+    effs = tuple(parse_effect(e) for e in effects)
+    rows, rng = shifted_table().rows, np.random.default_rng(6)
+    scorer = Scorer(rows, 150, effs, (60.0, 20.0, 80.0))
+    for size in (0, 1, 37, 300):
+        pop = cga.random_population(rng, size)
+        pop[: size // 2, :, 1] //= 5
+        want = simulate(rows, pop, 150, effs, (60.0, 20.0, 80.0), kernel="numpy").score()
+        assert (scorer(pop) == want).all()

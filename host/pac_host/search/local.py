@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pac_host.coverage import DEFAULT_BUDGET, START_POSE, fitness_of_score, simulate
+from pac_host.coverage import DEFAULT_BUDGET, START_POSE, Scorer, fitness_of_score
 from pac_host.model.effects import Effect
 from pac_host.search.neighbours import (
     _VALUES,
@@ -57,6 +57,9 @@ class Objective:
     trace: list = field(default_factory=list)  # (evaluations, seconds, score) at each new best
     t0: float = field(default_factory=time.perf_counter)
 
+    def __post_init__(self) -> None:
+        self._scorer = Scorer(self.rows, self.budget, self.effects, self.start_pose)
+
     def fingerprint(self) -> str:
         """A digest of what the scores depend on: the model, its effects, budget, start pose."""
         h = hashlib.sha256(np.ascontiguousarray(self.rows, dtype=np.float64).tobytes())
@@ -79,7 +82,7 @@ class Objective:
             if left <= 0:
                 raise Exhausted
             pop = pop[:left]
-        scores = simulate(self.rows, pop, self.budget, self.effects, self.start_pose).score()
+        scores = self._scorer(pop)
         self.evaluations += len(pop)
         if len(scores):
             i = int(np.argmax(scores))
@@ -118,10 +121,11 @@ def climb(x: np.ndarray, score: int, objective: Objective,
     # tiers of neighbourhoods, cheapest first: a gene's id or repetitions alone, any change
     # of one gene, paired repetition changes; an improvement anywhere restarts at the first
     tried: set[tuple[int, int]] = set()
+    genes = [int(j) for j in slots(x, budget)]  # the slots worth changing, kept with x
     while True:
         move = None
         for tier in range(3):
-            where = [PAIRS] if tier == 2 else [int(j) for j in slots(x, budget)]
+            where = [PAIRS] if tier == 2 else genes
             todo = [j for j in where if (tier, j) not in tried]
             if todo:
                 move = tier, todo[rng.integers(len(todo))]
@@ -142,6 +146,7 @@ def climb(x: np.ndarray, score: int, objective: Objective,
         i = int(np.argmax(s)) if len(s) else 0
         if len(s) and s[i] > score:
             x, score = canonical(n[i], budget), int(s[i])
+            genes = [int(j) for j in slots(x, budget)]
             tried = {move}
         else:
             tried.add(move)

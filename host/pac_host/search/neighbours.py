@@ -15,6 +15,8 @@ batched call of the coverage simulator.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from pac_host.coverage import MAX_GAIT_ID, MAX_REPS
@@ -51,15 +53,23 @@ def value_indices(gene: np.ndarray, small: bool = False) -> np.ndarray:
     change to, in the table's order; with ``small``, only those keeping its id or its
     repetitions (for a non-empty gene)."""
     gid, reps = int(gene[0]), int(gene[1])
-    own = len(_VALUES) - 1 if reps == 0 else gid * MAX_REPS + reps - 1
-    if not (small and reps > 0):
-        return np.delete(np.arange(len(_VALUES)), own)
+    if small and reps > 0:
+        return _small_changes(gid, reps)
+    return np.delete(np.arange(len(_VALUES)), len(_VALUES) - 1 if reps == 0
+                     else gid * MAX_REPS + reps - 1)
+
+
+@functools.lru_cache(maxsize=len(_VALUES))
+def _small_changes(gid: int, reps: int) -> np.ndarray:
+    """The values keeping id ``gid`` or ``reps`` repetitions (computed once each, read-only)."""
     same_reps = np.arange(MAX_GAIT_ID + 1) * MAX_REPS + reps - 1
     same_id = gid * MAX_REPS + np.arange(MAX_REPS)
     idx = np.union1d(same_reps, same_id)
     if gid == 0:
         idx = np.append(idx, len(_VALUES) - 1)  # the empty gene keeps id 0
-    return idx[idx != own]
+    idx = idx[idx != gid * MAX_REPS + reps - 1]
+    idx.flags.writeable = False
+    return idx
 
 
 def gene_changes(genes: np.ndarray, j: int, idx: np.ndarray) -> np.ndarray:
