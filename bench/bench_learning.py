@@ -9,9 +9,9 @@ oracle (the same CGA on the robot's true table).
 
 Targets (the issue's, for the default method, on every robot, 30 seeds): 90% of the best known
 on at least 27 of 30 seeds with a median of at most 10 punctuations; 95% at the end on at least
-27 of 30. The default alone, 30 seeds, takes about 8 minutes a robot with ``--jobs 2`` on a
-quiet 2-core machine (``library_on_changed``, whose learnt model carries a transition, too:
-8 min 9 s, now that the compiled kernel runs it); the full measurement, every method with
+27 of 30. The default alone, 30 seeds, takes 10-12 minutes a robot with ``--jobs 2`` on a
+quiet 2-core machine (``library_on_changed``, whose learnt model carries a transition, too,
+now that the compiled kernel runs it); the full measurement, every method with
 full, partial and the oracle, takes hours:
 ``python bench/run.py --only learning``; ``--quick`` runs 2 seeds on each robot.
 Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
