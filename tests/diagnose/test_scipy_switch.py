@@ -88,8 +88,12 @@ def test_diagnoses_equal_the_former_ones(i):
     got = {c["effect"]: c for c in d.candidates}
     for rc in ref["candidates"]:
         c = got[rc["effect"]]
-        # p-values of fitted statistics: equal to the fit's own precision
-        assert c["fit"]["p_lr"] == pytest.approx(rc["p_lr"], abs=1e-8)
+        # p-values of fitted statistics: equal to the fit's own precision. Near p = 1 the
+        # statistic is near 0, where the p-value's slope is unbounded (chi2's survival with
+        # one degree of freedom is about 1 - sqrt(2 x / pi)): a rounding in the fit's last
+        # digits, as between numpy releases, moves it by 1e-7 there
+        tol = 1e-5 if rc["p_lr"] > 0.999 else 1e-8
+        assert c["fit"]["p_lr"] == pytest.approx(rc["p_lr"], abs=tol)
         assert c["p_value"] == pytest.approx(rc["p_value"], abs=1e-8)
 
 
