@@ -356,8 +356,7 @@ def simulate(
         raise ValueError("the numba kernel needs numba, no kept paths and no sequence effect "
                          "but transition (battery_sag and user-defined effects run in numpy)")
     if compiled and kernel != "numpy":
-        figures = coverage_jit.score_paths(genes, n_tables, run.moves, run.q0, run.p0,
-                                           run.drift, budget, run.transition_moves(genes))
+        figures = run.score_compiled(genes, n_tables)
         shape = (n_genes,) if rows.ndim == 2 else (n_tables, n_genes)
         return Coverage(*(f.reshape(shape) for f in figures))
     figures = np.empty((4, n_paths), dtype=np.int64)
@@ -410,9 +409,7 @@ class Scorer:
         if not self._compiled:
             return simulate(self.rows, genes, self.budget, self.effects,
                             self.start_pose).score()
-        run = self._run
-        figures = coverage_jit.score_paths(genes, 1, run.moves, run.q0, run.p0, run.drift,
-                                           self.budget, run.transition_moves(genes))
+        figures = self._run.score_compiled(genes, 1)
         return coverage_score(figures[2], figures[3])
 
 
@@ -440,6 +437,11 @@ class _Runner:
             self.turns = table[:, 2]
             drift = world_drift(effects)
             self.drift = None if drift is None else complex(drift[0], drift[1])
+
+    def score_compiled(self, genes: np.ndarray, n_tables: int) -> np.ndarray:
+        """Figures (4, n_tables * P) of turn cycles (P, G, 2) from the compiled kernel."""
+        return coverage_jit.score_paths(genes, n_tables, self.moves, self.q0, self.p0,
+                                        self.drift, self.budget, self.transition_moves(genes))
 
     def transition_moves(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """For the compiled kernel: the changes of gait id (prev, gait) the turn cycles make

@@ -121,11 +121,11 @@ def climb(x: np.ndarray, score: int, objective: Objective,
     # tiers of neighbourhoods, cheapest first: a gene's id or repetitions alone, any change
     # of one gene, paired repetition changes; an improvement anywhere restarts at the first
     tried: set[tuple[int, int]] = set()
-    genes = [int(j) for j in slots(x, budget)]  # the slots worth changing, kept with x
+    changeable = [int(j) for j in slots(x, budget)]  # the slots worth changing, kept with x
     while True:
         move = None
         for tier in range(3):
-            where = [PAIRS] if tier == 2 else genes
+            where = [PAIRS] if tier == 2 else changeable
             todo = [j for j in where if (tier, j) not in tried]
             if todo:
                 move = tier, todo[rng.integers(len(todo))]
@@ -146,7 +146,7 @@ def climb(x: np.ndarray, score: int, objective: Objective,
         i = int(np.argmax(s)) if len(s) else 0
         if len(s) and s[i] > score:
             x, score = canonical(n[i], budget), int(s[i])
-            genes = [int(j) for j in slots(x, budget)]
+            changeable = [int(j) for j in slots(x, budget)]
             tried = {move}
         else:
             tried.add(move)
