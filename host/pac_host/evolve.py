@@ -60,11 +60,11 @@ class EvolveConfig:
     initial_generations: int = 200
     model: str = "measured"
     # between punctuations: "cga" (interval CGA generations, the paper) or "ils" (anytime: a
-    # budget of search evaluations while the robot walks); runs saved before this existed
+    # budget of search evaluations on each corrected model); runs saved before this existed
     # were "cga"
     search: str = "cga"
     search_evaluations: int = 0
-    search_while_walking: bool = False  # past the budget, until the robot has walked the tests
+    search_while_walking: bool = False  # also search while the robot walks the tests
     robot: dict = field(default_factory=dict)  # what played the robot (a resume reuses it)
     correction: str = pal.PALConfig.correction
     structure: str = pal.PALConfig.structure

@@ -40,6 +40,7 @@ from pac_host.coverage import (
     simulate,
 )
 from pac_host.errors import InputError
+from pac_host.model.effects import Effect
 from pac_host.model.table import GaitTable
 from pac_host.robot_time import seconds_of_tests
 
@@ -117,11 +118,11 @@ class PALConfig:
     perturb_reps: int = 50
     # Between punctuations: "cga", ``interval`` generations of the CGA after the model GA (the
     # paper); or "ils", anytime: ``search_evaluations`` coverage evaluations of iterated local
-    # search on the model while the robot walks the tests (pac_host.search.anytime).
+    # search on the model each punctuation's tests have just corrected (pac_host.search.anytime).
     search: str = "cga"
     search_evaluations: int = 0
-    # With an anytime search run in a worker (evolve): once its budget is spent, keep searching
-    # until the robot has walked the tests. A real robot walks about 13 minutes a punctuation,
+    # With an anytime search and a worker (evolve): also search, on the model the tests were
+    # chosen on, while the robot walks them. A real robot walks about 13 minutes a punctuation,
     # hundreds of millions of evaluations; the run is then no longer reproducible from its seed.
     search_while_walking: bool = False
     # The model correction: "ga", the model GA alone (the paper); "fit", the whole table fitted
@@ -242,10 +243,12 @@ def punctuate(
 ) -> tuple[PALState, dict]:
     """One punctuation: test on the robot, update the operational solution, evolve the models.
 
-    With an anytime search (``cfg.search`` other than "cga") the turn-cycle search on the
-    current model runs during the tests, in a worker thread when ``concurrent`` (the robot's
-    link and observer keep the main thread); it draws from its own generator, split off
-    ``rng`` first, so the result is the same either way. Returns the new state and a
+    With an anytime search (``cfg.search`` other than "cga") the turn-cycle search spends its
+    budget on the model these tests have just corrected, so the next tests come from the
+    freshest model; with ``concurrent`` and ``cfg.search_while_walking`` it also searches the
+    current model in a worker thread while the robot walks the tests (the robot's link and
+    observer keep the main thread), a search without a budget and so not reproducible. The
+    search draws from its own generator, split off ``rng`` first. Returns the new state and a
     JSON-ready record of what happened.
     """
     tests = choose_tests(state, rng, cfg)
@@ -254,9 +257,9 @@ def punctuate(
     search = None
     if cfg.search != "cga":  # at the last punctuation too: a run carried on needs its result
         search = _AnytimeSearch(state, np.random.default_rng(rng.integers(2**63)), cfg)
-    if search is not None and concurrent:
+    if search is not None and concurrent and cfg.search_while_walking:
         with ThreadPoolExecutor(1) as pool:
-            job = pool.submit(search)
+            job = pool.submit(search.while_walking)
             try:
                 results = robot.run_tests(tests)
             except BaseException:
@@ -265,11 +268,8 @@ def punctuate(
             finally:
                 search.walked()
                 job.result()
-    else:
+    else:  # in line there is no walking to search through
         results = robot.run_tests(tests)
-        if search is not None:
-            search.walked()  # in line there is no walking left to search through
-            search()
 
     # the operational turn cycle: the best tested (or only the CGA's best, as in the paper),
     # replaced only when it does better on the robot
@@ -316,13 +316,11 @@ def punctuate(
         "robot_seconds": round(float(seconds_of_tests(tests, cfg.budget).sum()), 3),
         **fit_record,
     }
-    pop = state.cga_pop
+    pop, carried = state.cga_pop, state.search
     if search is not None:
-        pop = search.pop
+        search.on_corrected(models, model_effects)
+        pop, carried = search.pop, search.chain
         record["search"] = search.record
-    carried = state.search
-    if search is not None:
-        carried = search.chain
     new = PALState(state.generation, pop, models, tuple(model_effects), operational,
                    op_score, op_fit, state.base, observed, carried, *structure)
     return new, record
@@ -375,13 +373,17 @@ def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult
 
 
 class _AnytimeSearch:
-    """The search of one punctuation, runnable in a worker thread: a budget of evaluations on
-    the model the tests were chosen on, from the population's best."""
+    """The search of one punctuation: while the robot walks the tests (in a worker thread, on a
+    real robot) it searches without a budget on the model the tests were chosen on; once the
+    tests have corrected the model, it spends its budget of evaluations on the corrected one,
+    so the next tests come from a search of the freshest model."""
 
     def __init__(self, state: PALState, rng: np.random.Generator, cfg: PALConfig) -> None:
         self.state, self.rng, self.cfg = state, rng, cfg
         self.pop = state.cga_pop
         self.chain = state.search
+        self.walking_evaluations: int | None = None
+        self.walking_best = -1
         self.record: dict = {}
         self.cancelled = False
         self.walking = threading.Event()
@@ -392,34 +394,48 @@ class _AnytimeSearch:
         self.cancelled = True
 
     def walked(self) -> None:
-        """The robot has walked the tests: a search past its budget stops."""
+        """The robot has walked the tests: the search while walking stops."""
         self.walking.clear()
 
-    def __call__(self) -> None:
+    def while_walking(self) -> None:
+        """Search the current model until the robot has walked the tests (the worker's job)."""
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
-        carried = None if self.state.search is None else Chain.from_json(self.state.search)
-        model, effects = self.state.models[0], self.state.model_effects
+        carried = None if self.chain is None else Chain.from_json(self.chain)
         self.pop, rec, chain = anytime.advance(
-            model, self.state.cga_pop, self.cfg.search_evaluations, self.rng, self.cfg.budget,
-            effects, self.cfg.search, cancelled=lambda: self.cancelled, chain=carried)
-        if self.cfg.search_while_walking and self.walking.is_set() and not self.cancelled:
-            self.pop, more, chain = anytime.advance(
-                model, self.pop, None, self.rng, self.cfg.budget, effects, self.cfg.search,
-                cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=chain)
-            rec = {**rec, "evaluations_while_walking": more["evaluations"],
-                   "best_score": max(rec.get("best_score", -1), more.get("best_score", -1))}
+            self.state.models[0], self.pop, None, self.rng, self.cfg.budget,
+            self.state.model_effects, self.cfg.search,
+            cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=carried)
+        self.chain = chain.to_json()
+        self.walking_evaluations = rec["evaluations"]
+        self.walking_best = rec.get("best_score", -1)
+
+    def on_corrected(self, models: np.ndarray, effects: Sequence[Effect]) -> None:
+        """Spend the budget on the corrected model ``models[0]``, from the population ranked
+        on it."""
+        from pac_host.search import anytime
+        from pac_host.search.local import Chain
+
+        fit = cga.fitness(models[0], self.pop, self.cfg.budget, effects)
+        pop = self.pop[np.argsort(-fit, kind="stable")]
+        carried = None if self.chain is None else Chain.from_json(self.chain)
+        self.pop, rec, chain = anytime.advance(
+            models[0], pop, self.cfg.search_evaluations, self.rng, self.cfg.budget, effects,
+            self.cfg.search, chain=carried)
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
+        if self.walking_evaluations is not None:
+            self.record["evaluations_while_walking"] = self.walking_evaluations
+            self.record["best_score_while_walking"] = self.walking_best
 
 
 def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
                 cfg: PALConfig = PALConfig()) -> tuple[PALState, int]:
     """Run the CGA on the current best model; returns the state and the best model fitness.
 
-    With an anytime search the turn cycles were searched during the punctuation's tests: this
-    only ranks them on the model the model GA just made, and counts the generations."""
+    With an anytime search the turn cycles were searched at the punctuation, on the model it
+    made: this only ranks them on that model, and counts the generations."""
     if cfg.search != "cga":
         fit = cga.fitness(state.models[0], state.cga_pop, cfg.budget, state.model_effects)
         order = np.argsort(-fit, kind="stable")

@@ -59,7 +59,8 @@ def test_profiles_are_pal_overrides():
 
 
 def test_anytime_search_in_a_worker_equals_the_search_in_line():
-    """evolve runs the search in a thread during the tests; experiment in line: same run."""
+    """evolve runs its tests concurrently, experiment in line: without a search while walking
+    (which has no budget) both spend the budget after the tests, and give the same run."""
     cfg = replace(profiles.apply("default", pal.PALConfig(cga_population=16,
                                                           model_population=8,
                                                           model_generations=3,
@@ -80,18 +81,23 @@ def test_anytime_search_in_a_worker_equals_the_search_in_line():
     assert out[0][0][0]["search"]["evaluations"] == 3000
 
 
-def test_anytime_search_improves_the_turn_cycle_on_the_model():
+def test_anytime_search_spends_its_budget_on_the_model_the_tests_corrected():
+    """The tests are chosen on the initial (measured) model; the shifted robot's tests correct
+    it, and the search then improves the turn cycle on the corrected model, not the old one."""
     cfg = replace(profiles.apply("default", pal.PALConfig(cga_population=16, model_population=8,
                                                           model_generations=2)),
                   search_evaluations=20000)
     rng = np.random.default_rng(2)
-    state = pal.initial_state(shifted_table(), rng, cfg)
-    model = state.models[0]  # the search runs on the model the tests were chosen on
-    before = pal.cga.fitness(model, state.cga_pop[:1], cfg.budget)[0]
-    state, rec = pal.punctuate(state, pal.SimulatedRobot(shifted_table()), rng, cfg)
-    after = pal.cga.fitness(model, state.cga_pop[:1], cfg.budget)[0]
+    state = pal.initial_state(measured_table(), rng, cfg)
+    pop = state.cga_pop
+    new, rec = pal.punctuate(state, pal.SimulatedRobot(shifted_table()), rng, cfg)
+    assert not np.array_equal(new.models[0], state.models[0])  # the tests corrected the model
+    before = pal.cga.fitness(new.models[0], pop, cfg.budget, new.model_effects).max()
+    after = pal.cga.fitness(new.models[0], new.cga_pop[:1], cfg.budget, new.model_effects)[0]
     assert rec["search"]["best_score"] == after
     assert after > before
+    stale = pal.cga.fitness(state.models[0], new.cga_pop[:1], cfg.budget)[0]
+    assert stale != after  # scored on the old model the search's best is another figure
 
 
 def test_search_while_walking_searches_until_the_robot_has_walked_the_tests():

@@ -60,10 +60,9 @@ from pac_host.robot.recovery import describe_counts
 @profile_option()
 @search_evaluations_option()
 @click.option("--search-while-walking/--no-search-while-walking", default=None,
-              help="Once a punctuation's search budget is spent, keep searching until the robot "
-                   "has walked the tests (its 13 minutes become search time; the run is then "
-                   "not reproducible from its seed). [default: on with --port, off with the "
-                   "built-in emulator]")
+              help="Also search while the robot walks the tests, on the model they were chosen "
+                   "on (its 13 minutes become search time; the run is then not reproducible "
+                   "from its seed). [default: on with --port, off with the built-in emulator]")
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
                correction, structure, tests, operational, profile, search_evaluations,
@@ -76,11 +75,11 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
     when a new one does better on the robot. A person places a real robot at each start pose
     when asked (press Enter); the built-in emulator is placed through its tracker.
 
-    With the default profile the turn-cycle search runs while the robot walks the tests, with
-    a budget of evaluations per punctuation (the same run on any machine), and on a real robot
-    (--port) on past it until the robot has walked them (--no-search-while-walking keeps a run
-    reproducible); --profile paper runs INTERVAL generations of the paper's CGA between
-    punctuations instead.
+    With the default profile each punctuation's tests correct the model and the turn-cycle
+    search then spends a budget of evaluations on it (the same run on any machine); on a real
+    robot (--port) it also searches while the robot walks the tests (--no-search-while-walking
+    keeps a run reproducible); --profile paper runs INTERVAL generations of the paper's CGA
+    between punctuations instead.
 
     Writes OUT/log.jsonl (a line per punctuation), observations.jsonl (every observation, as
     it happens), runs.jsonl (observed runs, for `pac-host diagnose`), model.json,
