@@ -60,6 +60,9 @@ class Coverage:
     blocks_covered_once: np.ndarray
     fitness: np.ndarray
     repeat_visits: np.ndarray
+    # the pose (gait cycles walked) at which the fitness was reached: what is left of the budget
+    # after it is slack that a change of the turn cycle can use to reach further
+    reached_at: np.ndarray | None = None
     poses: np.ndarray | None = None
     blocks: np.ndarray | None = None  # detected block per pose, -1 for none
 
@@ -84,6 +87,29 @@ class Coverage:
 def coverage_score(fitness: np.ndarray, repeat_visits: np.ndarray) -> np.ndarray:
     """Lexicographic (fitness, -repeat visits) as one integer per path."""
     return np.asarray(fitness, dtype=np.int64) * 4096 - np.asarray(repeat_visits, dtype=np.int64)
+
+
+def search_score(fitness: np.ndarray, reached_at: np.ndarray, repeat_visits: np.ndarray,
+                 budget: int) -> np.ndarray:
+    """The searches' ranking of paths as one integer per path: higher fitness first, then the
+    fitness reached in fewer gait cycles, then fewer repeat visits.
+
+    Among turn cycles of one fitness, the one that reaches it sooner leaves more of the budget
+    for a change to reach further: on the coverage fitness's wide plateaus this gives the
+    search's climbs a slope (measured in docs/search.md). :func:`fitness_of_search_score`
+    recovers the fitness.
+
+    >>> int(fitness_of_search_score(search_score(np.array(7), np.array(150), np.array(2), 200),
+    ...                             200))
+    7
+    """
+    lead = np.asarray(fitness, dtype=np.int64) * (budget + 1) + (budget - np.asarray(reached_at))
+    return lead * 4096 - np.minimum(np.asarray(repeat_visits, dtype=np.int64), 4095)
+
+
+def fitness_of_search_score(score: np.ndarray | int, budget: int) -> np.ndarray | int:
+    """The coverage fitness inside a :func:`search_score` for ``budget`` gait cycles."""
+    return fitness_of_score(score) // (budget + 1)
 
 
 def fitness_of_score(score: np.ndarray | int) -> np.ndarray | int:
@@ -280,7 +306,8 @@ def _detect(x: np.ndarray, y: np.ndarray, sin_h: np.ndarray, cos_h: np.ndarray,
 
 def figures_from_blocks(blocks: np.ndarray, prev: np.ndarray | None = None
                         ) -> tuple[np.ndarray, ...]:
-    """(covered, covered once, fitness, repeat visits) from detected blocks (..., n)."""
+    """(covered, covered once, fitness, repeat visits, reached at) from detected blocks
+    (..., n); reached at is the pose at which the path's fitness was reached (0 for none)."""
     lead = blocks.shape[:-1]
     b = blocks.reshape(-1, blocks.shape[-1])
     n_paths = b.shape[0]
@@ -306,15 +333,22 @@ def figures_from_blocks(blocks: np.ndarray, prev: np.ndarray | None = None
     r = np.argmin(full, axis=1)
     c = per_row[np.arange(n_paths), r]
     fitness = COLUMNS * r + c
-    return tuple(a.reshape(lead) for a in (blocks_covered, once, fitness, repeat))
+    # the first detection of each block (visit starts run in path order, time order within a
+    # path); the fitness is reached when the last block it counts is first detected
+    ids, first_start = np.unique(key, return_index=True)
+    first = np.full(n_paths * n_blocks, -1, dtype=np.int64)
+    first[ids] = where[first_start] % b.shape[1]
+    counted = np.arange(n_blocks) < (r[:, None] + 1) * COLUMNS
+    reached = np.maximum(np.where(counted, first.reshape(n_paths, n_blocks), -1).max(
+        axis=1, initial=-1), 0)
+    return tuple(a.reshape(lead) for a in (blocks_covered, once, fitness, repeat, reached))
 
 
 def coverage_of_poses(poses: np.ndarray, keep: bool = False) -> Coverage:
     """Coverage figures of given paths (..., n + 1, 3), e.g. a path observed on the robot."""
     poses = np.asarray(poses, dtype=np.float64)
     blocks = detect_blocks(poses)
-    covered, once, fitness, repeat = figures_from_blocks(blocks)
-    return Coverage(covered, once, fitness, repeat, poses if keep else None,
+    return Coverage(*figures_from_blocks(blocks), poses if keep else None,
                     blocks if keep else None)
 
 
@@ -359,7 +393,7 @@ def simulate(
         figures = run.score_compiled(genes, n_tables)
         shape = (n_genes,) if rows.ndim == 2 else (n_tables, n_genes)
         return Coverage(*(f.reshape(shape) for f in figures))
-    figures = np.empty((4, n_paths), dtype=np.int64)
+    figures = np.empty((5, n_paths), dtype=np.int64)
     poses = np.empty((n_paths, budget + 1, 3)) if keep_paths else None
     blocks = np.empty((n_paths, budget + 1), dtype=np.int64) if keep_paths else None
     for lo in range(0, n_paths, CHUNK_PATHS):
@@ -374,11 +408,10 @@ def simulate(
             poses[lo:hi] = np.stack((ws.p.real, ws.p.imag, h), axis=-1)
             blocks[lo:hi] = ws.blocks
     shape = (n_genes,) if rows.ndim == 2 else (n_tables, n_genes)
-    covered, once, fitness, repeat = (f.reshape(shape) for f in figures)
     if keep_paths:
         poses = poses.reshape(shape + poses.shape[1:])
         blocks = blocks.reshape(shape + blocks.shape[1:])
-    return Coverage(covered, once, fitness, repeat, poses, blocks)
+    return Coverage(*(f.reshape(shape) for f in figures), poses, blocks)
 
 
 class Scorer:
@@ -405,12 +438,19 @@ class Scorer:
 
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         """Scores (P,) of turn cycles (P, 9, 2)."""
+        return self.both(genes)[1]
+
+    def both(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Search scores (:func:`search_score`) and scores, (P,) each, of turn cycles
+        (P, 9, 2)."""
         genes = np.asarray(genes, dtype=np.int64)
-        if not self._compiled:
-            return simulate(self.rows, genes, self.budget, self.effects,
-                            self.start_pose).score()
-        figures = self._run.score_compiled(genes, 1)
-        return coverage_score(figures[2], figures[3])
+        if self._compiled:
+            _, _, fitness, repeat, reached = self._run.score_compiled(genes, 1)
+        else:
+            cov = simulate(self.rows, genes, self.budget, self.effects, self.start_pose)
+            fitness, repeat, reached = cov.fitness, cov.repeat_visits, cov.reached_at
+        return (search_score(fitness, reached, repeat, self.budget),
+                coverage_score(fitness, repeat))
 
 
 class _Runner:
@@ -439,7 +479,7 @@ class _Runner:
             self.drift = None if drift is None else complex(drift[0], drift[1])
 
     def score_compiled(self, genes: np.ndarray, n_tables: int) -> np.ndarray:
-        """Figures (4, n_tables * P) of turn cycles (P, G, 2) from the compiled kernel."""
+        """Figures (5, n_tables * P) of turn cycles (P, G, 2) from the compiled kernel."""
         return coverage_jit.score_paths(genes, n_tables, self.moves, self.q0, self.p0,
                                         self.drift, self.budget, self.transition_moves(genes))
 

@@ -55,9 +55,9 @@ def _block(x: float, y: float, c: float, s: float) -> int:
 
 def _figures(blocks: np.ndarray, n: int, visits: np.ndarray, out: np.ndarray, k: int
              ) -> np.ndarray:
-    """(covered, covered once, fitness, repeat visits) of one path's detected blocks into
-    ``out[:, k]``: as ``coverage.figures_from_blocks``. ``visits`` is a scratch buffer, grown
-    when a path reaches further; returns it."""
+    """(covered, covered once, fitness, repeat visits, reached at) of one path's detected
+    blocks into ``out[:, k]``: as ``coverage.figures_from_blocks``. ``visits`` is a scratch
+    buffer, grown when a path reaches further; returns it."""
     top = -1
     for t in range(n):
         if blocks[t] > top:
@@ -91,6 +91,20 @@ def _figures(blocks: np.ndarray, n: int, visits: np.ndarray, out: np.ndarray, k:
     out[1, k] = once
     out[2, k] = fitness
     out[3, k] = total - covered
+    # reached at: the pose at which the last of the blocks the fitness counts (every block
+    # of the full rows, the covered ones of the first row that is not) was first detected
+    reached = 0
+    left = fitness
+    end = (fitness // _COLUMNS + 1) * _COLUMNS
+    for t in range(n):
+        if left == 0:
+            break
+        b = blocks[t]
+        if b >= 0 and b < end and visits[b] > 0:
+            visits[b] = -visits[b]  # seen
+            left -= 1
+            reached = t
+    out[4, k] = reached
     return visits
 
 
@@ -133,7 +147,7 @@ def _transition_pairs(genes: np.ndarray, out: np.ndarray) -> None:
 def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.ndarray,
                  q0: complex, p0: complex, drift: complex, budget: int, slots: np.ndarray,
                  n_slots: int, blend_rot: np.ndarray, blend_disp: np.ndarray) -> np.ndarray:
-    """Figures (4, n_tables * P) of turn cycles ``genes`` (P, G, 2) on tables whose moves are
+    """Figures (5, n_tables * P) of turn cycles ``genes`` (P, G, 2) on tables whose moves are
     ``rot`` and ``disp`` (n_tables * 32,): path k runs genes k % P on table k // P.
 
     With ``n_slots`` > 0, a gait cycle whose gait id differs from the one just before it in the
@@ -148,7 +162,7 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
     n_genes = genes.shape[0]
     n_paths = n_tables * n_genes
     blend = n_slots > 0
-    out = np.empty((4, n_paths), dtype=np.int64)
+    out = np.empty((5, n_paths), dtype=np.int64)
     blocks = np.empty(budget + 1, dtype=np.int64)
     qs = np.empty(budget + 1, dtype=np.complex128)
     ps = np.empty(budget + 1, dtype=np.complex128)
@@ -237,7 +251,7 @@ def transition_pairs(genes: np.ndarray) -> np.ndarray:
 def score_paths(genes: np.ndarray, n_tables: int, moves: np.ndarray, q0: complex, p0: complex,
                 drift: complex | None, budget: int,
                 transition: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """Figures (4, n_tables * P) of turn cycles (P, G, 2) on tables with complex ``moves``
+    """Figures (5, n_tables * P) of turn cycles (P, G, 2) on tables with complex ``moves``
     (n_tables * 32, 2) as ``kinematics.complex_moves`` gives them; path k runs turn cycle
     k % P on table k // P.
 

@@ -5,14 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pac_host import cga
 from pac_host.coverage import (
     START_POSE,
     coverage_of_poses,
     detect_blocks,
     expand,
     figures_from_blocks,
+    fitness_of_search_score,
     format_turn_cycle,
     parse_turn_cycle,
+    search_score,
     simulate,
 )
 from pac_host.errors import InputError
@@ -40,16 +43,38 @@ def test_detection_rule_by_hand(pose, block):
 
 
 def test_figures_by_hand():
-    # visits: block 0 twice, block 1 twice (left then re-entered), block 2 once
-    c, once, fit, rep = figures_from_blocks(np.array([[0, 0, 1, -1, 1, 2, 0]]))
-    assert (c[0], once[0], fit[0], rep[0]) == (3, 1, 3, 2)
-    # row 0 full, row 1 has two blocks: 3 * 1 + 2
-    assert figures_from_blocks(np.array([[0, 1, 2, 3, 5]]))[2][0] == 5
-    # a mine left behind in row 0 caps the score even though row 1 is full
-    c, once, fit, rep = figures_from_blocks(np.array([[1, 2, 3, 4, 5]]))
-    assert (c[0], fit[0]) == (5, 2)
+    # visits: block 0 twice, block 1 twice (left then re-entered), block 2 once; the row is
+    # full, and so the fitness reached, when block 2 is first detected (pose 5)
+    c, once, fit, rep, at = figures_from_blocks(np.array([[0, 0, 1, -1, 1, 2, 0]]))
+    assert (c[0], once[0], fit[0], rep[0], at[0]) == (3, 1, 3, 2, 5)
+    # row 0 full, row 1 has two blocks: 3 * 1 + 2, reached at the second of them
+    assert [f[0] for f in figures_from_blocks(np.array([[0, 1, 2, 3, 5]]))[2:]] == [5, 0, 4]
+    # a mine left behind in row 0 caps the score even though row 1 is full: the fitness (2)
+    # counts blocks 1 and 2, reached at pose 1, whatever the path covers after
+    c, once, fit, rep, at = figures_from_blocks(np.array([[1, 2, 3, 4, 5]]))
+    assert (c[0], fit[0], at[0]) == (5, 2, 1)
+    # blocks first detected out of order: the last counted one decides
+    assert figures_from_blocks(np.array([[-1, 2, 0, 0, 4, 1, 2]]))[4][0] == 5
     # nothing detected
-    assert [f[0] for f in figures_from_blocks(np.array([[-1, -1]]))] == [0, 0, 0, 0]
+    assert [f[0] for f in figures_from_blocks(np.array([[-1, -1]]))] == [0, 0, 0, 0, 0]
+
+
+def test_search_score_ranks_fitness_then_reaching_it_sooner_then_fewer_repeats():
+    fitness = np.array([5, 5, 5, 6, 0])
+    reached = np.array([120, 80, 80, 199, 0])
+    repeats = np.array([0, 3, 1, 9, 0])
+    s = search_score(fitness, reached, repeats, 200)
+    assert np.argsort(-s).tolist() == [3, 2, 1, 0, 4]
+    np.testing.assert_array_equal(fitness_of_search_score(s, 200), fitness)
+    # the paths' figures: the same order as the coverage score wherever fitness differs
+    rows = measured_table().rows
+    pop = cga.random_population(np.random.default_rng(4), 400)
+    cov = simulate(rows, pop)
+    key = search_score(cov.fitness, cov.reached_at, cov.repeat_visits, 200)
+    np.testing.assert_array_equal(fitness_of_search_score(key, 200), cov.fitness)
+    assert ((cov.reached_at >= 0) & (cov.reached_at <= 200)).all()
+    # the start pose is in block 0: a fitness of 1 is reached there, more takes gait cycles
+    assert (cov.reached_at[cov.fitness >= 2] > 0).all() and (cov.fitness >= 2).any()
 
 
 def test_expand_loops_and_skips_zero_repetitions():

@@ -13,7 +13,7 @@ from pac_host.model.effects_module import forget_user_effects
 from pac_host.model.kinematics import complex_moves
 
 pytestmark = pytest.mark.skipif(not coverage_jit.AVAILABLE, reason="numba not installed")
-FIGURES = ("blocks_covered", "blocks_covered_once", "fitness", "repeat_visits")
+FIGURES = ("blocks_covered", "blocks_covered_once", "fitness", "repeat_visits", "reached_at")
 
 
 def _population(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from pac_host import cga
 from pac_host.cli.main import main
-from pac_host.coverage import fitness_of_score, parse_turn_cycle, simulate
+from pac_host.coverage import fitness_of_score, parse_turn_cycle, search_score, simulate
 from pac_host.model import measured_table, parse_effect, shifted_table
 from pac_host.search.local import Exhausted, Objective, climb
 from pac_host.search.neighbours import canonical, neighbours, pair_neighbours
@@ -20,6 +20,11 @@ from pac_host.search.optimize import OptimizeConfig, optimize
 
 def _score(rows, genes, budget=200, effects=()):
     return simulate(rows, genes, budget, effects).score()
+
+
+def _search_score(rows, genes, budget=200):
+    cov = simulate(rows, genes, budget)
+    return search_score(cov.fitness, cov.reached_at, cov.repeat_visits, budget)
 
 
 def test_canonical_form_walks_the_same_path():
@@ -60,9 +65,9 @@ def test_climb_ends_at_a_local_optimum():
     obj = Objective(rows, 200)
     x = cga.random_population(np.random.default_rng(3), 1)[0]
     best, score = climb(x, int(obj(x[None])[0]), obj, np.random.default_rng(4))
-    assert score == _score(rows, best)[0]
-    assert _score(rows, neighbours(best, 200)).max() <= score
-    assert _score(rows, pair_neighbours(best, 200)).max() <= score
+    assert score == _search_score(rows, best)[0]
+    assert _search_score(rows, neighbours(best, 200)).max() <= score
+    assert _search_score(rows, pair_neighbours(best, 200)).max() <= score
 
 
 def test_a_sampled_climb_is_cheaper_and_ends_where_no_cheap_or_paired_change_improves():
@@ -78,11 +83,11 @@ def test_a_sampled_climb_is_cheaper_and_ends_where_no_cheap_or_paired_change_imp
             x0 = int(obj(x[None])[0])
             best, score = climb(x, x0, obj, np.random.default_rng(k), sample)
             costs.append(obj.evaluations)
-            assert score == _score(rows, best)[0] and score > x0
+            assert score == _search_score(rows, best)[0] and score > x0
         small = np.concatenate([neighbours(best, 200, only=j, small=True)
                                 for j in range(9) if (best[j] != 0).any()])
-        assert _score(rows, small).max() <= score
-        assert _score(rows, pair_neighbours(best, 200)).max() <= score
+        assert _search_score(rows, small).max() <= score
+        assert _search_score(rows, pair_neighbours(best, 200)).max() <= score
         assert costs[1] < costs[0], costs
     with pytest.raises(ValueError, match="sample"):
         climb(starts[0], 0, Objective(rows, 200), np.random.default_rng(0), 0.0)
@@ -95,7 +100,11 @@ def test_objective_counts_evaluations_exactly_and_stops():
     assert len(obj(pop)) == 50 and obj.evaluations == 250
     with pytest.raises(Exhausted):
         obj(pop)
-    assert obj.best_score == _score(measured_table().rows, pop).max()
+    keys = _search_score(measured_table().rows, pop)
+    assert obj.best_search_score == keys.max()
+    # the best by search score, and its coverage score as the rest of the project ranks
+    assert obj.best_score == _score(measured_table().rows, pop)[np.argmax(keys)]
+    assert fitness_of_score(obj.best_score) == obj.fitness(obj.best_search_score)
 
 
 def test_optimize_is_reproducible_and_jobs_do_not_change_it():

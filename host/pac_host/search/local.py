@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pac_host.coverage import DEFAULT_BUDGET, START_POSE, Scorer, fitness_of_score
+from pac_host.coverage import DEFAULT_BUDGET, START_POSE, Scorer, fitness_of_search_score
 from pac_host.model.effects import Effect
 from pac_host.search.neighbours import (
     _VALUES,
@@ -29,6 +29,9 @@ from pac_host.search.neighbours import (
 )
 
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
+# What the search scores are (Objective.fingerprint): a chain carried from a run whose scores
+# ranked otherwise re-scores its point rather than compare scores of two kinds.
+_SCORES = "search_score: fitness, reached sooner, fewer repeat visits"
 
 
 class Exhausted(Exception):
@@ -37,11 +40,15 @@ class Exhausted(Exception):
 
 @dataclass
 class Objective:
-    """Scores turn cycles on one model and counts evaluations against a budget.
+    """Scores turn cycles on one model for a search and counts evaluations against a budget.
 
-    ``limit`` is the number of evaluations allowed (None: no limit); ``deadline`` a
-    ``time.perf_counter()`` value after which no batch starts (None: none). The best turn cycle
-    ever scored and when it was found (evaluations, seconds) are kept as a trace.
+    A call returns search scores (:func:`pac_host.coverage.search_score`: fitness, then the
+    fitness reached sooner, then fewer repeat visits), which the searches compare;
+    :meth:`fitness` reads the fitness from one. ``limit`` is the number of evaluations allowed
+    (None: no limit); ``deadline`` a ``time.perf_counter()`` value after which no batch starts
+    (None: none). The best turn cycle ever scored, its score (:meth:`Coverage.score`, as
+    everything outside the searches ranks turn cycles) and when it was found (evaluations,
+    seconds) are kept as a trace.
     """
 
     rows: np.ndarray
@@ -53,7 +60,8 @@ class Objective:
     cancelled: Callable[[], bool] | None = None
     evaluations: int = 0
     best: np.ndarray | None = None
-    best_score: int | None = None
+    best_score: int | None = None  # the best's score (Coverage.score)
+    best_search_score: int | None = None
     trace: list = field(default_factory=list)  # (evaluations, seconds, score) at each new best
     t0: float = field(default_factory=time.perf_counter)
 
@@ -64,15 +72,20 @@ class Objective:
         """A digest of what the scores depend on: the model, its effects, budget, start pose."""
         h = hashlib.sha256(np.ascontiguousarray(self.rows, dtype=np.float64).tobytes())
         h.update(repr((tuple(str(e) for e in self.effects), self.budget,
-                       tuple(float(v) for v in self.start_pose))).encode())
+                       tuple(float(v) for v in self.start_pose), _SCORES)).encode())
         return h.hexdigest()[:16]
+
+    def fitness(self, search_score: int) -> int:
+        """The coverage fitness inside one of this objective's search scores."""
+        return int(fitness_of_search_score(search_score, self.budget))
 
     def remaining(self) -> int | None:
         return None if self.limit is None else self.limit - self.evaluations
 
     def __call__(self, pop: np.ndarray) -> np.ndarray:
-        """Scores of turn cycles (N, 9, 2); raises :class:`Exhausted` when the budget is spent
-        (a batch that would pass the evaluation limit is cut to it, so the count is exact)."""
+        """Search scores of turn cycles (N, 9, 2); raises :class:`Exhausted` when the budget
+        is spent (a batch that would pass the evaluation limit is cut to it, so the count is
+        exact)."""
         if self.deadline is not None and time.perf_counter() >= self.deadline:
             raise Exhausted
         if self.cancelled is not None and self.cancelled():
@@ -82,15 +95,16 @@ class Objective:
             if left <= 0:
                 raise Exhausted
             pop = pop[:left]
-        scores = self._scorer(pop)
+        keys, scores = self._scorer.both(pop)
         self.evaluations += len(pop)
-        if len(scores):
-            i = int(np.argmax(scores))
-            if self.best_score is None or scores[i] > self.best_score:
-                self.best, self.best_score = pop[i].copy(), int(scores[i])
+        if len(keys):
+            i = int(np.argmax(keys))
+            if self.best_search_score is None or keys[i] > self.best_search_score:
+                self.best, self.best_search_score = pop[i].copy(), int(keys[i])
+                self.best_score = int(scores[i])
                 self.trace.append((self.evaluations, time.perf_counter() - self.t0,
                                    self.best_score))
-        return scores
+        return keys
 
 
 def climb(x: np.ndarray, score: int, objective: Objective,
@@ -104,8 +118,8 @@ def climb(x: np.ndarray, score: int, objective: Objective,
     before any change of the gene, and paired repetition changes last. With ``sample`` < 1
     (and ``rng``) each look at a gene's any-change neighbourhood (2,016 changes) scores a fresh
     random share of it, so the climb ends at a point no cheap, paired or sampled change
-    improves: a cheaper, approximate local optimum (:data:`SAMPLE`). Returns the local optimum
-    (canonical) and its score."""
+    improves: a cheaper, approximate local optimum (:data:`SAMPLE`). ``score`` and the score
+    returned with the local optimum (canonical) are the objective's search scores."""
     if not 0 < sample <= 1:
         raise ValueError(f"sample must be in (0, 1], got {sample}")
     budget = objective.budget
@@ -120,7 +134,10 @@ def climb(x: np.ndarray, score: int, objective: Objective,
             x, score = canonical(n[i], budget), int(s[i])
     # tiers of neighbourhoods, cheapest first: a gene's id or repetitions alone, any change
     # of one gene, paired repetition changes; an improvement anywhere restarts at the first
+    # a move that improved is looked at again only once nothing else improves: its best
+    # change was just taken
     tried: set[tuple[int, int]] = set()
+    last = None
     changeable = [int(j) for j in slots(x, budget)]  # the slots worth changing, kept with x
     while True:
         move = None
@@ -131,7 +148,9 @@ def climb(x: np.ndarray, score: int, objective: Objective,
                 move = tier, todo[rng.integers(len(todo))]
                 break
         if move is None:
-            return x, score
+            if last is None or last[1] != PAIRS and last[1] not in changeable:
+                return x, score
+            move, last = last, None
         tier, j = move
         if tier == 2:
             n = pair_neighbours(x, budget)
@@ -147,7 +166,7 @@ def climb(x: np.ndarray, score: int, objective: Objective,
         if len(s) and s[i] > score:
             x, score = canonical(n[i], budget), int(s[i])
             changeable = [int(j) for j in slots(x, budget)]
-            tried = {move}
+            tried, last = {move}, move
         else:
             tried.add(move)
 
@@ -191,13 +210,13 @@ class Chain:
     >>> objective = Objective(shifted_table().rows, limit=20_000)
     >>> chain = Chain()
     >>> chain.run(objective, np.random.default_rng(0), patience=50)
-    >>> objective.evaluations, bool(fitness_of_score(objective.best_score) > 10)
+    >>> objective.evaluations, objective.fitness(objective.best_search_score) > 10
     (20000, True)
     """
 
     x: np.ndarray | None = None
     stale: int = 0
-    score: int | None = None  # x's score on the model it was last climbed on, and that model
+    score: int | None = None  # x's search score on the model it was last climbed on, and the model
     model: str | None = None
     starts: int = 0  # starting points so far, a given one included (picks the loop divisor)
 
@@ -224,7 +243,7 @@ class Chain:
                     y = kick(x, rng, kick_genes, objective.budget)
                     y, s = climb(y, int(objective(y[None])[0]), objective, rng, sample)
                     self.stale = 0 if s > score else self.stale + 1
-                    if fitness_of_score(s) >= fitness_of_score(score):  # plateaus are crossed
+                    if objective.fitness(s) >= objective.fitness(score):  # plateaus crossed
                         x, score = y, s
                         self.x, self.score = x, score
                 self.x, self.model = None, None
