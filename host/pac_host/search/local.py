@@ -148,7 +148,7 @@ def climb(x: np.ndarray, score: int, objective: Objective,
                 move = tier, todo[rng.integers(len(todo))]
                 break
         if move is None:
-            if last is None or last[1] != PAIRS and last[1] not in changeable:
+            if last is None or (last[1] != PAIRS and last[1] not in changeable):
                 return x, score
             move, last = last, None
         tier, j = move
