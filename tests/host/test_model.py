@@ -23,6 +23,12 @@ from pac_host.model import (
     step_moves,
 )
 from pac_host.model.effects import effective_rows
+from pac_host.model.kinematics import (
+    complex_moves,
+    heading_rotation,
+    loop_moves,
+    repeated_moves,
+)
 
 
 def _cases(data_dir):
@@ -55,6 +61,24 @@ def test_pose_update_formula_by_hand():
     assert p[1].tolist() == pytest.approx([12.0, 25.0, 30.0])
     h = math.radians(30)
     assert p[2].tolist() == pytest.approx([12 + 4 * math.sin(h), 25 + 4 * math.cos(h), 30.0])
+
+
+def test_a_loops_net_move_is_where_one_pass_of_it_walks_to():
+    """loop_moves composes repeated_moves; one pass of the loop walked gait cycle by gait cycle
+    (rollout) must end where the net move, applied to the start pose, puts it."""
+    rng = np.random.default_rng(3)
+    for rows in (measured_table().rows, shifted_table().rows):
+        repeated = repeated_moves(complex_moves(rows), 63)
+        for _ in range(20):
+            genes = np.stack((rng.integers(0, 32, 9), rng.integers(0, 64, 9)), axis=-1)
+            ids = np.repeat(genes[:, 0], genes[:, 1])
+            start = np.array([45.0, 30.0, rng.uniform(-180, 180)])
+            end = rollout(rows, start, ids)[-1]
+            d, rot = loop_moves(genes, repeated)
+            q0 = heading_rotation(start[2])
+            p = start[0] + 1j * start[1] + q0 * d
+            assert (p.real, p.imag) == pytest.approx((end[0], end[1]), abs=1e-9)
+            assert q0 * rot == pytest.approx(heading_rotation(end[2]), abs=1e-12)
 
 
 def test_heading_is_not_wrapped():

@@ -13,6 +13,7 @@ from pac_host import cga
 from pac_host.cli.main import main
 from pac_host.coverage import fitness_of_score, parse_turn_cycle, search_score, simulate
 from pac_host.model import measured_table, parse_effect, shifted_table
+from pac_host.search.kicks import closing_kick, closure_error, kick, loop_table
 from pac_host.search.local import Exhausted, Objective, climb
 from pac_host.search.neighbours import canonical, neighbours, pair_neighbours
 from pac_host.search.optimize import OptimizeConfig, optimize
@@ -258,3 +259,29 @@ def test_the_best_known_turn_cycles_score_as_recorded():
         table = robots.build(name) if name in robots.ROBOTS else resolve_table(name)
         cov = simulate(table.rows, parse_turn_cycle(rec["turn_cycle"]), 200, table.effects)
         assert cov.row(0)["fitness"] == rec["fitness"], name
+
+
+def test_a_closing_kick_keeps_a_repeating_loops_net_move():
+    """A closing kick changes two genes of a loop the budget repeats and brings the loop's net
+    move back near the kicked loop's; a random kick of two genes does not."""
+    rng = np.random.default_rng(5)
+    for table in (measured_table(), shifted_table()):
+        repeated = loop_table(table.rows)
+        for text in ("10:1,25:8,21:11,17:2,9:4,5:8,22:3,11:1,1:6", "12:20,3:10,28:15,6:4"):
+            x = parse_turn_cycle(text)
+            near, far = [], []
+            for _ in range(30):
+                y = closing_kick(x, rng, 2, 200, repeated)
+                assert (y != x).any(axis=1).sum() <= 2
+                assert y[:, 1].sum() < 200  # still a repeating loop
+                near.append(float(closure_error(y, x, repeated)))
+                far.append(float(closure_error(kick(x, rng, 2, 200), x, repeated)))
+            assert np.median(near) < np.median(far) / 4
+
+
+def test_a_loop_the_budget_does_not_repeat_is_kicked_at_random():
+    x = parse_turn_cycle("12:60,3:63,20:63,5:40")  # 226 gait cycles: walked once in 200
+    repeated = loop_table(shifted_table().rows)
+    a = closing_kick(x, np.random.default_rng(9), 2, 200, repeated)
+    b = kick(x, np.random.default_rng(9), 2, 200)
+    assert (a == b).all() and (a != x).any()

@@ -50,6 +50,42 @@ def heading_rotation(h: np.ndarray | float) -> np.ndarray:
     return np.exp(-1j * np.radians(h))
 
 
+def repeated_moves(moves: np.ndarray, max_reps: int) -> np.ndarray:
+    """The move of r = 0..``max_reps`` repetitions of each of the complex moves (..., 2) that
+    :func:`complex_moves` gives, as (..., max_reps + 1, 2): the displacement (in the frame of
+    the first repetition's start) and the rotation. r repetitions of (d, rot) displace by
+    ``d (1 + rot + ... + rot^(r-1))`` and turn by ``rot^r``, as :func:`scan_moves` walks them.
+
+    >>> m = complex_moves(np.array([12.1, -0.1, 0.0]))
+    >>> d, rot = repeated_moves(m, 2)[2]  # two straight gait cycles
+    >>> complex(np.round(d, 6)), complex(np.round(rot, 6)).real
+    ((-0.2+24.2j), 1.0)
+    """
+    moves = np.asarray(moves, dtype=np.complex128)
+    powers = moves[..., 1, None] ** np.arange(max_reps + 1)
+    out = np.empty(moves.shape[:-1] + (max_reps + 1, 2), dtype=np.complex128)
+    out[..., 0, 0] = 0.0
+    np.cumsum(powers[..., :-1], axis=-1, out=out[..., 1:, 0])
+    out[..., 0] *= moves[..., 0, None]
+    out[..., 1] = powers
+    return out
+
+
+def loop_moves(genes: np.ndarray, repeated: np.ndarray) -> np.ndarray:
+    """The net move of one pass of each loop of genes (..., G, 2) of (gait id, repetitions),
+    as (..., 2): displacement in the frame of the pass's start, and rotation, from the
+    per-gait ``repeated`` moves (32, max_reps + 1, 2) of :func:`repeated_moves`. A loop that
+    repeats within the budget walks its first pass again from where this move leaves it."""
+    genes = np.asarray(genes, dtype=np.int64)
+    steps = repeated[genes[..., 0], genes[..., 1]]
+    q = np.ones(genes.shape[:-2], dtype=np.complex128)
+    p = np.zeros(genes.shape[:-2], dtype=np.complex128)
+    for j in range(genes.shape[-2]):
+        p = p + steps[..., j, 0] * q
+        q = q * steps[..., j, 1]
+    return np.stack((p, q), axis=-1)
+
+
 def scan_moves(q: np.ndarray, p: np.ndarray, drift: np.ndarray | None = None) -> None:
     """The pose update over whole paths at once, in place, in complex form.
 

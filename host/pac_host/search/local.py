@@ -1,6 +1,7 @@
 """Local search for turn cycles: climb single-gene changes until none improves, and iterated
-local search (ILS), which kicks a local optimum by re-drawing two genes and climbs again,
-restarted when it stalls (:class:`Chain`, which can stop and be carried on later).
+local search (ILS), which kicks a local optimum (two genes changed, a repeating loop's net move
+kept: :mod:`pac_host.search.kicks`) and climbs again, restarted when it stalls
+(:class:`Chain`, which can stop and be carried on later).
 
 Every evaluation goes through the coverage simulator (:func:`pac_host.coverage.simulate`); an
 :class:`Objective` counts them, so a search can be given a budget in evaluations and stay
@@ -18,8 +19,8 @@ import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, Scorer, fitness_of_search_score
 from pac_host.model.effects import Effect
+from pac_host.search.kicks import closing_kick, loop_table
 from pac_host.search.neighbours import (
-    _VALUES,
     canonical,
     gene_changes,
     neighbours,
@@ -67,6 +68,15 @@ class Objective:
 
     def __post_init__(self) -> None:
         self._scorer = Scorer(self.rows, self.budget, self.effects, self.start_pose)
+        self._loop_table = None
+
+    def loop_table(self) -> np.ndarray:
+        """The model's gait cycles repeated 0..63 times
+        (:func:`pac_host.search.kicks.loop_table`), made once: what a closing kick needs to
+        know a loop's net move."""
+        if self._loop_table is None:
+            self._loop_table = loop_table(self.rows, self.effects)
+        return self._loop_table
 
     def fingerprint(self) -> str:
         """A digest of what the scores depend on: the model, its effects, budget, start pose."""
@@ -171,15 +181,6 @@ def climb(x: np.ndarray, score: int, objective: Objective,
             tried.add(move)
 
 
-def kick(x: np.ndarray, rng: np.random.Generator, genes: int, budget: int) -> np.ndarray:
-    """Re-draw ``genes`` of the slots worth changing to random (id, repetitions) values."""
-    y = x.copy()
-    where = slots(x, budget)
-    for j in rng.choice(where, size=min(genes, len(where)), replace=False):
-        y[j] = _VALUES[rng.integers(len(_VALUES))]
-    return y
-
-
 # The share of a gene's any-change neighbourhood a search's climb scores each time it looks
 # (:func:`climb`). Measured (3 million evaluations a run, five tables, seeds 0-11): mean final
 # fitness 30.8 with the whole neighbourhood, 32.1 with a quarter, 32.6 with a tenth. A climb
@@ -240,7 +241,8 @@ class Chain:
                     x, score = climb(x, score, objective, rng, sample)
                     self.x, self.score, self.model = x, score, model
                 while self.stale < patience:
-                    y = kick(x, rng, kick_genes, objective.budget)
+                    y = closing_kick(x, rng, kick_genes, objective.budget,
+                                     objective.loop_table())
                     y, s = climb(y, int(objective(y[None])[0]), objective, rng, sample)
                     self.stale = 0 if s > score else self.stale + 1
                     if objective.fitness(s) >= objective.fitness(score):  # plateaus crossed

@@ -2,8 +2,9 @@
 
 Iterated local search with restarts (:mod:`pac_host.search.local`): climb single-gene changes
 (a fresh random tenth of a gene's any-change neighbourhood each look) until none improves, kick
-two genes and climb again, moving on to any local optimum at least as fit, and restart from a
-short CGA run after ``patience`` kicks in a row without progress.
+two genes (a closing kick, :mod:`pac_host.search.kicks`, for a loop the budget repeats) and climb
+again, moving on to any local optimum at least as fit, and restart from a short CGA run after
+``patience`` kicks in a row without progress.
 The search runs as ``chains`` independent chains, each seeded from ``SeedSequence([seed,
 chain])``; ``jobs`` processes run them side by side, so for a budget in evaluations the result
 depends on the seed alone. A budget in seconds is split among the chains by wall time (each
