@@ -13,9 +13,16 @@ from pac_host import cga
 from pac_host.cli.main import main
 from pac_host.coverage import fitness_of_score, parse_turn_cycle, search_score, simulate
 from pac_host.model import measured_table, parse_effect, shifted_table
-from pac_host.search.kicks import closing_kick, closure_error, kick, loop_table
+from pac_host.model.kinematics import loop_moves
+from pac_host.search.kicks import (
+    closing_kick,
+    closure_error,
+    gene_change_moves,
+    kick,
+    loop_table,
+)
 from pac_host.search.local import Exhausted, Objective, climb
-from pac_host.search.neighbours import canonical, neighbours, pair_neighbours
+from pac_host.search.neighbours import _VALUES, canonical, neighbours, pair_neighbours
 from pac_host.search.optimize import OptimizeConfig, optimize
 
 
@@ -285,3 +292,15 @@ def test_a_loop_the_budget_does_not_repeat_is_kicked_at_random():
     a = closing_kick(x, np.random.default_rng(9), 2, 200, repeated)
     b = kick(x, np.random.default_rng(9), 2, 200)
     assert (a == b).all() and (a != x).any()
+
+
+def test_gene_change_moves_are_the_net_moves_of_the_changed_loops():
+    """The closing kick's shortcut (moves of the genes before and after the changed one) gives
+    the net move of every single-gene change as the loop walked whole would."""
+    repeated = loop_table(measured_table().rows)
+    y = parse_turn_cycle("10:1,25:8,21:11,17:2,0:0,5:8,22:3,11:1,1:6")
+    fast = gene_change_moves(y, repeated)
+    for j in range(len(y)):
+        changed = np.repeat(y[None], len(_VALUES), axis=0)
+        changed[:, j] = _VALUES
+        np.testing.assert_allclose(fast[j], loop_moves(changed, repeated), atol=1e-9)

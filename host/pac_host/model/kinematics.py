@@ -78,12 +78,21 @@ def loop_moves(genes: np.ndarray, repeated: np.ndarray) -> np.ndarray:
     repeats within the budget walks its first pass again from where this move leaves it."""
     genes = np.asarray(genes, dtype=np.int64)
     steps = repeated[genes[..., 0], genes[..., 1]]
-    q = np.ones(genes.shape[:-2], dtype=np.complex128)
-    p = np.zeros(genes.shape[:-2], dtype=np.complex128)
+    out = np.zeros(genes.shape[:-2] + (2,), dtype=np.complex128)
+    out[..., 1] = 1.0  # no move
     for j in range(genes.shape[-2]):
-        p = p + steps[..., j, 0] * q
-        q = q * steps[..., j, 1]
-    return np.stack((p, q), axis=-1)
+        out = compose_moves(out, steps[..., j, :])
+    return out
+
+
+def compose_moves(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The net move (..., 2) of move ``a`` then move ``b``, each (..., 2) a displacement in the
+    frame of its start and a rotation (the form of :func:`repeated_moves`)."""
+    a, b = np.broadcast_arrays(a, b)
+    out = np.empty(a.shape, dtype=np.complex128)
+    out[..., 0] = a[..., 0] + a[..., 1] * b[..., 0]
+    out[..., 1] = a[..., 1] * b[..., 1]
+    return out
 
 
 def scan_moves(q: np.ndarray, p: np.ndarray, drift: np.ndarray | None = None) -> None:
