@@ -62,7 +62,12 @@ def closure_error(y: np.ndarray, x: np.ndarray, repeated: np.ndarray,
     """How far the net moves of loops ``y`` (..., G, 2) are from that of loop ``x``: the
     displacement's distance (cm) plus ``weight`` times the rotation's (about the angle in
     radians)."""
-    a, b = loop_moves(y, repeated), loop_moves(x, repeated)
+    return _move_distance(loop_moves(y, repeated), loop_moves(x, repeated), weight)
+
+
+def _move_distance(a: np.ndarray, b: np.ndarray, weight: float) -> np.ndarray:
+    """Distance of net moves ``a`` (..., 2) from the one move ``b`` (2,): displacement (cm)
+    plus ``weight`` times rotation."""
     return np.abs(a[..., 0] - b[0]) + weight * np.abs(a[..., 1] - b[1])
 
 
@@ -77,8 +82,7 @@ def closing_kick(x: np.ndarray, rng: np.random.Generator, genes: int, budget: in
     y = kick(x, rng, genes - 1, budget)
     where = slots(y, budget)
     moves = gene_change_moves(y, repeated)[where]  # (slots, values, 2)
-    target = loop_moves(x, repeated)
-    err = np.abs(moves[..., 0] - target[0]) + weight * np.abs(moves[..., 1] - target[1])
+    err = _move_distance(moves, loop_moves(x, repeated), weight)
     length = int(y[:, 1].sum()) - y[where, 1][:, None] + _VALUES[None, :, 1]
     err[length >= budget] = np.inf
     err = err.ravel()
