@@ -107,9 +107,30 @@ def search_score(fitness: np.ndarray, reached_at: np.ndarray, repeat_visits: np.
     return lead * 4096 - np.minimum(np.asarray(repeat_visits, dtype=np.int64), 4095)
 
 
-def fitness_of_search_score(score: np.ndarray | int, budget: int) -> np.ndarray | int:
-    """The coverage fitness inside a :func:`search_score` for ``budget`` gait cycles."""
-    return fitness_of_score(score) // (budget + 1)
+def fitness_of_search_score(score: np.ndarray | int, budget: int, starts: int = 1
+                            ) -> np.ndarray | int:
+    """The coverage fitness inside a :func:`search_score` for ``budget`` gait cycles; for a
+    :func:`pooled_search_score` of walks from ``starts`` start poses, their summed fitness."""
+    return -(-np.asarray(score) // (starts * 4095 + 1)) // (starts * budget + 1)
+
+
+def pooled_search_score(fitness: np.ndarray, reached_at: np.ndarray, repeat_visits: np.ndarray,
+                        budget: int) -> np.ndarray:
+    """:func:`search_score` of each turn cycle walked from K start poses, pooled: the figures
+    (K, P) summed over the walks, then ranked as one walk's are (higher summed fitness, then
+    fewer summed gait cycles to reach it, then fewer summed repeat visits). With K = 1 it is
+    :func:`search_score`, value for value.
+
+    >>> f, r, v = np.array([[7], [5]]), np.array([[150], [90]]), np.array([[2], [0]])
+    >>> int(fitness_of_search_score(pooled_search_score(f, r, v, 200), 200, starts=2))
+    12
+    """
+    fitness = np.asarray(fitness, dtype=np.int64)
+    k = fitness.shape[0]
+    slack = k * budget - np.asarray(reached_at, dtype=np.int64).sum(axis=0)
+    lead = fitness.sum(axis=0) * (k * budget + 1) + slack
+    repeats = np.minimum(np.asarray(repeat_visits, dtype=np.int64), 4095).sum(axis=0)
+    return lead * (k * 4095 + 1) - repeats
 
 
 def fitness_of_score(score: np.ndarray | int) -> np.ndarray | int:
@@ -419,6 +440,10 @@ class Scorer:
     :func:`simulate`'s setup (effective rows, moves) done once: a search scores thousands of
     small batches on the same model. The scores are simulate's, value for value.
 
+    ``start_pose`` is one pose (3,) or K of them (K, 3): with K, each turn cycle is walked from
+    every one and :meth:`both`'s search scores are pooled over the walks
+    (:func:`pooled_search_score`; :mod:`pac_host.placement` makes such poses).
+
     >>> from pac_host.model import shifted_table
     >>> genes = parse_turn_cycle("12:60,3:10")
     >>> bool(Scorer(shifted_table().rows)(genes[None])[0]
@@ -432,7 +457,10 @@ class Scorer:
         self.rows = np.asarray(rows, dtype=np.float64)
         self.budget, self.effects = check_budget(budget), tuple(effects)
         self.start_pose = np.asarray(start_pose, dtype=np.float64)
-        self._run = _Runner(self.rows, self.budget, self.effects, self.start_pose, False)
+        self.starts = np.atleast_2d(self.start_pose)
+        self._runs = [_Runner(self.rows, self.budget, self.effects, p, False)
+                      for p in self.starts]
+        self._run = self._runs[0]
         self._compiled = (self.rows.ndim == 2 and self._run.compiled
                           and coverage_jit.AVAILABLE)
 
@@ -442,15 +470,24 @@ class Scorer:
 
     def both(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Search scores (:func:`search_score`) and scores, (P,) each, of turn cycles
-        (P, 9, 2)."""
+        (P, 9, 2). From K start poses: the pooled search scores, and the scores of the walks
+        from the first pose."""
         genes = np.asarray(genes, dtype=np.int64)
-        if self._compiled:
-            _, _, fitness, repeat, reached = self._run.score_compiled(genes, 1)
-        else:
-            cov = simulate(self.rows, genes, self.budget, self.effects, self.start_pose)
-            fitness, repeat, reached = cov.fitness, cov.repeat_visits, cov.reached_at
-        return (search_score(fitness, reached, repeat, self.budget),
-                coverage_score(fitness, repeat))
+        walks = []
+        for run, pose in zip(self._runs, self.starts, strict=True):
+            if self._compiled:
+                _, _, fitness, repeat, reached = run.score_compiled(genes, 1)
+            else:
+                cov = simulate(self.rows, genes, self.budget, self.effects, pose)
+                fitness, repeat, reached = cov.fitness, cov.repeat_visits, cov.reached_at
+            walks.append((fitness, reached, repeat))
+        fitness, reached, repeat = walks[0]
+        if len(walks) == 1:
+            return (search_score(fitness, reached, repeat, self.budget),
+                    coverage_score(fitness, repeat))
+        pooled = pooled_search_score(*(np.stack(w) for w in zip(*walks, strict=True)),
+                                     self.budget)
+        return pooled, coverage_score(fitness, repeat)
 
 
 class _Runner:

@@ -70,6 +70,7 @@ class EvolveConfig:
     structure: str = pal.PALConfig.structure
     tests: str = pal.PALConfig.tests
     operational: str = pal.PALConfig.operational
+    placement: str = pal.PALConfig.placement
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -96,7 +97,7 @@ class EvolveConfig:
             cga_population=self.cga_population,
             model_population=self.model_population, budget=self.budget,
             correction=self.correction, structure=self.structure, tests=self.tests,
-            operational=self.operational, search=self.search,
+            operational=self.operational, placement=self.placement, search=self.search,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

@@ -28,12 +28,13 @@ from typing import Protocol
 
 import numpy as np
 
-from pac_host import cga, limits, model_fit, model_ga, test_selection
+from pac_host import cga, limits, model_fit, model_ga, placement, test_selection
 from pac_host.coverage import (
     DEFAULT_BUDGET,
     MAX_REPS,
     START_POSE,
     Coverage,
+    Scorer,
     coverage_score,
     fitness_of_score,
     format_turn_cycle,
@@ -132,6 +133,10 @@ class PALConfig:
     structure: str = "effects"  # with "fit": "effects" or "none" (rows by evidence alone)
     tests: str = "informative"  # "paper": best + two perturbations; "informative": test_selection
     operational: str = "tested"  # "best": only the CGA's best may replace it (the paper)
+    # With an anytime search: "POS_CM,HEAD_DEG", score turn cycles from a stencil of start poses
+    # for a robot placed by hand with these standard deviations (pac_host.placement); "none":
+    # from the exact start alone
+    placement: str = "none"
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -154,6 +159,12 @@ class PALConfig:
                              f"{self.search!r}")
         if self.search != "cga":
             limits.SEARCH_EVALUATIONS.check(self.search_evaluations, "--search-evaluations")
+        if self.placement_error() is not None and self.search == "cga":
+            raise InputError("--placement-error needs an anytime profile (the paper's CGA "
+                             "scores from the exact start)")
+
+    def placement_error(self) -> placement.PlacementError | None:
+        return placement.parse_placement(self.placement)
 
 
 # The paper's method (DESIGN.md 2.5): PALConfig(**PAPER) runs it with today's exact results.
@@ -406,7 +417,8 @@ class _AnytimeSearch:
         self.pop, rec, chain = anytime.advance(
             self.state.models[0], self.pop, None, self.rng, self.cfg.budget,
             self.state.model_effects, self.cfg.search,
-            cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=carried)
+            cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=carried,
+            placement=self.cfg.placement_error())
         self.chain = chain.to_json()
         self.walking_evaluations = rec["evaluations"]
         self.walking_best = rec.get("best_score", -1)
@@ -417,17 +429,28 @@ class _AnytimeSearch:
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
-        fit = cga.fitness(models[0], self.pop, self.cfg.budget, effects)
+        fit = _ranking(models[0], self.pop, self.cfg, effects)
         pop = self.pop[np.argsort(-fit, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
         self.pop, rec, chain = anytime.advance(
             models[0], pop, self.cfg.search_evaluations, self.rng, self.cfg.budget, effects,
-            self.cfg.search, chain=carried)
+            self.cfg.search, chain=carried, placement=self.cfg.placement_error())
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
         if self.walking_evaluations is not None:
             self.record["evaluations_while_walking"] = self.walking_evaluations
             self.record["best_score_while_walking"] = self.walking_best
+
+
+def _ranking(rows: np.ndarray, pop: np.ndarray, cfg: PALConfig, effects: Sequence[Effect]
+             ) -> np.ndarray:
+    """What an anytime search ranks turn cycles (P, 9, 2) by on model ``rows``: their coverage
+    scores from the start, or with a placement error their search scores pooled over its
+    stencil of start poses (as the search compares them)."""
+    error = cfg.placement_error()
+    if error is None:
+        return cga.fitness(rows, pop, cfg.budget, effects)
+    return Scorer(rows, cfg.budget, effects, error.stencil()).both(pop)[0]
 
 
 def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
@@ -437,11 +460,13 @@ def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
     With an anytime search the turn cycles were searched at the punctuation, on the model it
     made: this only ranks them on that model, and counts the generations."""
     if cfg.search != "cga":
-        fit = cga.fitness(state.models[0], state.cga_pop, cfg.budget, state.model_effects)
+        fit = _ranking(state.models[0], state.cga_pop, cfg, state.model_effects)
         order = np.argsort(-fit, kind="stable")
         state = replace(state, cga_pop=state.cga_pop[order],
                         generation=state.generation + generations)
-        return state, int(fitness_of_score(fit[order[0]]))
+        best = state.cga_pop[:1]
+        return state, int(fitness_of_score(cga.fitness(state.models[0], best, cfg.budget,
+                                                       state.model_effects)[0]))
     pop, best = cga.evolve(state.models[0], state.cga_pop, generations, rng, cfg.cga_config(),
                            state.model_effects)
     state = replace(state, cga_pop=pop, generation=state.generation + generations)

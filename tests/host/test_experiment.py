@@ -4,10 +4,16 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from pac_host.cli.main import main
+from pac_host.coverage import parse_turn_cycle
+from pac_host.experiment import STAGE_PLACED
+from pac_host.model import shifted_table
+from pac_host.placement import HAND, WALKS, placed_fitness
+from pac_host.placement import summary as summary_of
 
 SMALL = ["--seeds", "2", "--generations", "80", "--initial-generations", "30",
          "--optimum-runs", "2", "--optimum-generations", "60", "--optimum-evaluations", "20000",
@@ -46,6 +52,17 @@ def test_experiment_writes_summary_log_and_plots(finished):
                  "coverage_means.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "seeds reached the optimum" in text and "summary:" in text
+    # each final turn cycle is also walked on the actual robot from drawn start poses
+    rows = shifted_table().rows
+    for r in summary["runs"]:
+        genes = parse_turn_cycle(r["operational"])
+        fit = placed_fitness(rows, genes, HAND, WALKS, np.random.default_rng(
+            np.random.SeedSequence([0, r["seed"], STAGE_PLACED, 0])))
+        assert r["placed"] == summary_of(fit)
+    for m, s in summary["robot_time"]["methods"].items():
+        want = np.mean([r["placed"]["mean"] for r in summary["runs"] if r["method"] == m])
+        assert s["mean_placed_fitness"] == pytest.approx(want, abs=0.006)
+    assert "placed by hand" in text
 
 
 def test_full_run_once_with_partial_is_what_full_alone_gives(finished, tmp_path):

@@ -54,6 +54,22 @@ def test_evolve_writes_a_complete_log_and_the_model_error_falls(baseline):
     assert tc["turn_cycle"] == log[-1]["operational"]
     for png in ("coverage_path.png", "learning_progress.png"):
         assert (baseline / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # a robot is placed by hand: the default profile searches for it (pac_host.placement)
+    assert json.loads((baseline / "config.json").read_text())["placement"] == "0.5,1"
+    assert all(r["search"]["evaluations"] % 7 == 0 for r in log if "search" in r)
+
+
+def test_evolve_placement_default_follows_the_profile(tmp_path):
+    """The paper's CGA scores from the exact start: with --profile paper the default is none,
+    and an explicit placement error is refused (exit 2)."""
+    out = tmp_path / "paper"
+    args = [a for a in SMALL if a not in ("--search-evaluations", "20000")]
+    res = invoke("evolve", "--out", str(out), "--generations", "0", "--profile", "paper", *args)
+    assert res.exit_code == 0, res.output
+    assert json.loads((out / "config.json").read_text())["placement"] == "none"
+    res = invoke("evolve", "--out", str(tmp_path / "x"), "--generations", "0", "--profile",
+                 "paper", "--placement-error", "0.5,1", *args)
+    assert res.exit_code == 2 and "anytime" in res.output
 
 
 def test_robot_that_stops_answering_then_resume(baseline, tmp_path):

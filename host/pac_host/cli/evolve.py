@@ -12,6 +12,7 @@ from pac_host.cli.link_options import ask, confirm, emulator_options, given, lin
 from pac_host.cli.options import (
     Bounded,
     learning_options,
+    placement_option,
     profile_option,
     profile_pal,
     search_evaluations_option,
@@ -19,6 +20,7 @@ from pac_host.cli.options import (
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
 from pac_host.model.table import BUILTIN
+from pac_host.placement import HAND
 from pac_host.robot.connect import connect
 from pac_host.robot.observers import ManualObserver
 from pac_host.robot.recovery import describe_counts
@@ -63,9 +65,10 @@ from pac_host.robot.recovery import describe_counts
               help="Also search while the robot walks the tests, on the model they were chosen "
                    "on (its 13 minutes become search time; the run is then not reproducible "
                    "from its seed). [default: on with --port, off with the built-in emulator]")
+@placement_option(None, f"{HAND.to_text()} with an anytime profile, none with paper")
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
-               correction, structure, tests, operational, profile, search_evaluations,
+               correction, structure, tests, operational, placement, profile, search_evaluations,
                search_while_walking, port, observer_spec, placer, **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
@@ -106,7 +109,10 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         root = out_dir
         learn = profile_pal(profile, search_evaluations, model_generations,
                             dict(model_fitness=model_fitness, correction=correction,
-                                 structure=structure, tests=tests, operational=operational))
+                                 structure=structure, tests=tests, operational=operational,
+                                 placement=placement))
+        if placement is None:  # a robot is placed by hand (or seen through a noisy tracker)
+            learn = replace(learn, placement="none" if learn.search == "cga" else HAND.to_text())
         if search_while_walking is None:
             search_while_walking = port is not None and learn.search != "cga"
         if search_while_walking and learn.search == "cga":
@@ -121,7 +127,8 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            initial_generations=initial_generations,
                            model=_spec(model_spec), robot=_robot(port, observer_spec, sim),
                            correction=learn.correction, structure=learn.structure,
-                           tests=learn.tests, operational=learn.operational)
+                           tests=learn.tests, operational=learn.operational,
+                           placement=learn.placement)
         cfg.check()
     emu = emulator_options(sim, port)
     with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:

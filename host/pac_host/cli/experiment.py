@@ -15,6 +15,7 @@ from pac_host.cli.options import (
     effects_module_option,
     learning_options,
     load_with_effects,
+    placement_option,
     profile_option,
     profile_pal,
     progress_enabled,
@@ -26,6 +27,7 @@ from pac_host.executors import make_executor
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import resolve_table
 from pac_host.model.effects import BUILT_IN
+from pac_host.placement import HAND, WALKS
 from pac_host.plots import experiment_plots
 
 
@@ -80,10 +82,11 @@ from pac_host.plots import experiment_plots
 @search_evaluations_option()
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 @scheduler_options
+@placement_option()
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
                    optimum_runs, optimum_generations, optimum_evaluations, best_known,
-                   model_generations, correction, structure, tests, operational, profile,
+                   model_generations, correction, structure, tests, operational, placement, profile,
                    search_evaluations, resume, scheduler, connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
@@ -112,7 +115,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         best_known=best_known,
         pal=profile_pal(profile, search_evaluations, model_generations,
                         dict(model_fitness=model_fitness, correction=correction,
-                             structure=structure, tests=tests, operational=operational),
+                             structure=structure, tests=tests, operational=operational,
+                             placement=placement),
                         budget=check_budget(budget)),
     )
     actual = load_with_effects(actual_spec, effect_specs)
@@ -156,6 +160,10 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                       if s["median_robot_hours_to_target"] is not None else "")
                    + f"; ended at {rt['final_target']:.0%} on {s['ended_at_final_target']}/"
                    f"{s['seeds']}; {s['robot_hours_per_run']:.1f} robot hours per run")
+        if s.get("mean_placed_fitness") is not None:
+            click.echo(f"{'':>8}  final turn cycles placed by hand ({HAND.pos_cm:g} cm, "
+                       f"{HAND.head_deg:g} deg; {WALKS} drawn start poses each): mean fitness "
+                       f"{s['mean_placed_fitness']}")
     click.echo(f"summary: {out_dir / 'summary.json'}")
     click.echo("plots: " + ", ".join(str(p) for p in plots))
 

@@ -52,6 +52,16 @@ def effect_option():
     )
 
 
+def placement_option(default: str | None = "none", shown: str | bool = True):
+    """``--placement-error POS_CM,HEAD_DEG``: search for sweeps that keep their coverage when the
+    robot is placed by hand with these standard deviations (:mod:`pac_host.placement`)."""
+    return click.option(
+        "--placement-error", "placement", default=default, show_default=shown,
+        metavar="POS_CM,HEAD_DEG|none",
+        help="Score each turn cycle from a stencil of start poses around the start, for a "
+             "robot placed by hand with these standard deviations (none: the exact start).")
+
+
 def _load_modules(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) -> None:
     try:
         for path in value:

@@ -17,6 +17,7 @@ import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET
 from pac_host.model.effects import Effect
+from pac_host.placement import PlacementError
 from pac_host.search.local import Chain, Objective
 
 METHODS = ("ils",)
@@ -27,7 +28,8 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
             rng: np.random.Generator,
             budget: int = DEFAULT_BUDGET, effects: Sequence[Effect] = (), method: str = "ils",
             cancelled: Callable[[], bool] | None = None,
-            chain: Chain | None = None) -> tuple[np.ndarray, dict, Chain]:
+            chain: Chain | None = None,
+            placement: PlacementError | None = None) -> tuple[np.ndarray, dict, Chain]:
     """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
     ``evaluations`` None: until ``cancelled`` says stop (it must be given then).
@@ -36,14 +38,17 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     with the best turn cycle found in front (the others shifted down, duplicates of it
     dropped), a record of the search (evaluations, best score, restarts so far) and the chain
     to carry on. ``cancelled`` is polled between batches: a cancelled search stops early (its
-    caller discards the result).
+    caller discards the result). With a ``placement`` error the search scores each turn cycle
+    from its stencil of start poses (:class:`~pac_host.search.local.Objective`; a turn cycle
+    costs seven evaluations).
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
     if evaluations is None and cancelled is None:
         raise ValueError("a search without an evaluation budget needs a way to stop")
     chain = Chain(pop[0].copy(), starts=1) if chain is None else replace(chain)
-    objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled)
+    objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled,
+                          placement=placement)
     if evaluations is None or evaluations > 0:
         chain.run(objective, rng, PATIENCE)
     record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}

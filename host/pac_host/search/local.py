@@ -19,6 +19,7 @@ import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, Scorer, fitness_of_search_score
 from pac_host.model.effects import Effect
+from pac_host.placement import PlacementError
 from pac_host.search.kicks import closing_kick, loop_table
 from pac_host.search.neighbours import (
     canonical,
@@ -49,7 +50,12 @@ class Objective:
     (None: no limit); ``deadline`` a ``time.perf_counter()`` value after which no batch starts
     (None: none). The best turn cycle ever scored, its score (:meth:`Coverage.score`, as
     everything outside the searches ranks turn cycles) and when it was found (evaluations,
-    seconds) are kept as a trace.
+    seconds, fitness) are kept as a trace.
+
+    With a ``placement`` error each turn cycle is walked from the placement's stencil of start
+    poses around ``start_pose`` and the search scores are pooled over the walks
+    (:mod:`pac_host.placement`): :meth:`fitness` is then the mean fitness of the walks, and an
+    evaluation is one walk, so a turn cycle costs seven.
     """
 
     rows: np.ndarray
@@ -59,15 +65,19 @@ class Objective:
     deadline: float | None = None
     start_pose: Sequence[float] = START_POSE
     cancelled: Callable[[], bool] | None = None
-    evaluations: int = 0
+    placement: PlacementError | None = None
+    evaluations: int = 0  # walks simulated
     best: np.ndarray | None = None
     best_score: int | None = None  # the best's score (Coverage.score)
     best_search_score: int | None = None
-    trace: list = field(default_factory=list)  # (evaluations, seconds, score) at each new best
+    trace: list = field(default_factory=list)  # (evaluations, seconds, fitness) at each new best
     t0: float = field(default_factory=time.perf_counter)
 
     def __post_init__(self) -> None:
-        self._scorer = Scorer(self.rows, self.budget, self.effects, self.start_pose)
+        poses = (self.start_pose if self.placement is None
+                 else self.placement.stencil(self.start_pose))
+        self._scorer = Scorer(self.rows, self.budget, self.effects, poses)
+        self.starts = len(self._scorer.starts)
         self._loop_table = None
 
     def loop_table(self) -> np.ndarray:
@@ -83,11 +93,15 @@ class Objective:
         h = hashlib.sha256(np.ascontiguousarray(self.rows, dtype=np.float64).tobytes())
         h.update(repr((tuple(str(e) for e in self.effects), self.budget,
                        tuple(float(v) for v in self.start_pose), _SCORES)).encode())
+        if self.placement is not None:
+            h.update(repr(("placement", self.placement.to_text())).encode())
         return h.hexdigest()[:16]
 
-    def fitness(self, search_score: int) -> int:
-        """The coverage fitness inside one of this objective's search scores."""
-        return int(fitness_of_search_score(search_score, self.budget))
+    def fitness(self, search_score: int) -> int | float:
+        """The coverage fitness inside one of this objective's search scores (with a
+        placement error, the mean over the stencil's walks)."""
+        total = int(fitness_of_search_score(search_score, self.budget, self.starts))
+        return total if self.starts == 1 else total / self.starts
 
     def remaining(self) -> int | None:
         return None if self.limit is None else self.limit - self.evaluations
@@ -102,18 +116,18 @@ class Objective:
             raise Exhausted
         left = self.remaining()
         if left is not None:
-            if left <= 0:
+            if left < self.starts:
                 raise Exhausted
-            pop = pop[:left]
+            pop = pop[: left // self.starts]
         keys, scores = self._scorer.both(pop)
-        self.evaluations += len(pop)
+        self.evaluations += len(pop) * self.starts
         if len(keys):
             i = int(np.argmax(keys))
             if self.best_search_score is None or keys[i] > self.best_search_score:
                 self.best, self.best_search_score = pop[i].copy(), int(keys[i])
                 self.best_score = int(scores[i])
                 self.trace.append((self.evaluations, time.perf_counter() - self.t0,
-                                   self.best_score))
+                                   self.fitness(self.best_search_score)))
         return keys
 
 

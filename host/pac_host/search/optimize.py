@@ -9,6 +9,10 @@ The search runs as ``chains`` independent chains, each seeded from ``SeedSequenc
 chain])``; ``jobs`` processes run them side by side, so for a budget in evaluations the result
 depends on the seed alone. A budget in seconds is split among the chains by wall time (each
 chain gets ``seconds`` when there are as many processes as chains).
+
+With a placement error (``--placement-error``) every turn cycle is scored from a stencil of
+start poses around the start (:mod:`pac_host.placement`), and the result also gives its fitness
+from start poses drawn with that error, which the stencil never saw.
 """
 
 from __future__ import annotations
@@ -24,15 +28,16 @@ from pac_host import limits
 from pac_host.coverage import (
     DEFAULT_BUDGET,
     MAX_GENES,
-    fitness_of_score,
     format_turn_cycle,
     simulate,
 )
 from pac_host.errors import InputError
 from pac_host.model.effects import Effect
+from pac_host.placement import WALKS, PlacementError, placed_fitness, summary
 from pac_host.search.local import SAMPLE, Objective, restarts
 
 MAX_SECONDS = 7 * 24 * 3600.0
+PLACED_STREAM = 1 << 20  # its seed stream, apart from the chains' (SeedSequence([seed, chain]))
 
 
 @dataclass(frozen=True)
@@ -47,6 +52,7 @@ class OptimizeConfig:
     patience: int = 50
     kick_genes: int = 2
     sample: float = SAMPLE  # share of a gene's any-change neighbourhood a climb scores a look
+    placement: PlacementError | None = None  # score from a stencil of start poses
 
     def check(self) -> None:
         if self.seconds is None and self.evaluations is None:
@@ -70,13 +76,17 @@ def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, chain]))
     t0 = time.perf_counter()
     objective = Objective(rows, cfg.budget, effects, limit=evaluations,
-                          deadline=None if seconds is None else t0 + seconds)
+                          deadline=None if seconds is None else t0 + seconds,
+                          placement=cfg.placement)
     restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample)
-    return {"chain": chain, "genes": objective.best.tolist(), "score": objective.best_score,
+    # chains are ranked by score: the best's coverage score, or its pooled search score when
+    # the walks are from a placement's stencil
+    score = objective.best_score if cfg.placement is None else objective.best_search_score
+    return {"chain": chain, "genes": objective.best.tolist(), "score": score,
             "evaluations": objective.evaluations,
             "seconds": round(time.perf_counter() - t0, 3),
-            "trace": [{"evaluations": e, "seconds": round(t, 3),
-                       "fitness": int(fitness_of_score(s))} for e, t, s in objective.trace]}
+            "trace": [{"evaluations": e, "seconds": round(t, 3), "fitness": round(f, 3)}
+                      for e, t, f in objective.trace]}
 
 
 def optimize(rows: np.ndarray, cfg: OptimizeConfig, effects: Sequence[Effect] = (),
@@ -101,11 +111,18 @@ def optimize(rows: np.ndarray, cfg: OptimizeConfig, effects: Sequence[Effect] = 
     best = max(chains, key=lambda c: c["score"])  # the first chain wins a tie
     genes = np.array(best["genes"], dtype=np.int64)
     cov = simulate(rows, genes, cfg.budget, effects)
+    placed = {}
+    if cfg.placement is not None:
+        rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, PLACED_STREAM]))
+        fit = placed_fitness(rows, genes, cfg.placement, WALKS, rng, cfg.budget, effects)
+        placed = {"stencil_fitness": best["trace"][-1]["fitness"] if best["trace"] else None,
+                  "placed": summary(fit)}
     return {
         "format": "pac-optimize/1",
         "turn_cycle": format_turn_cycle(genes),
         "genes": best["genes"],
         **cov.row(0),
+        **placed,
         "evaluations": sum(c["evaluations"] for c in chains),
         "seconds": round(wall, 3),
         "settings": {**asdict(cfg), "jobs": jobs,
