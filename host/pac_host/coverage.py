@@ -122,7 +122,7 @@ def pooled_search_score(fitness: np.ndarray, reached_at: np.ndarray, repeat_visi
     :func:`search_score`, value for value.
 
     >>> f, r, v = np.array([[7], [5]]), np.array([[150], [90]]), np.array([[2], [0]])
-    >>> int(fitness_of_search_score(pooled_search_score(f, r, v, 200), 200, starts=2))
+    >>> int(fitness_of_search_score(pooled_search_score(f, r, v, 200), 200, starts=2)[0])
     12
     """
     fitness = np.asarray(fitness, dtype=np.int64)

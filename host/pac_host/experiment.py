@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from pac_host import cga, limits, model_ga, pal, stats
-from pac_host.coverage import fitness_of_score, format_turn_cycle, simulate
+from pac_host.coverage import fitness_of_score, format_turn_cycle, parse_turn_cycle, simulate
 from pac_host.errors import InputError
 from pac_host.executors import Executor, local_executor
 from pac_host.files import write_atomic
@@ -159,8 +159,6 @@ def pal_run(
                 f.flush()
 
     state = pal.run(state, robot, rng, pcfg, log)
-    placed = placed_fitness(actual.rows, state.operational, HAND, WALKS,
-                            _rng(cfg.base_seed, seed, STAGE_PLACED), pcfg.budget, actual.effects)
     return {
         "seed": seed,
         "method": method,
@@ -168,7 +166,7 @@ def pal_run(
         "coverage": [f for _, f in curve],
         "robot_hours": _hours(seconds),
         "operational": format_turn_cycle(state.operational),
-        "placed": summary(placed),
+        "placed": _placed(actual, state.operational, seed, cfg),
         "final_model_error": _model_error(effective_rows(state.models[0], state.model_effects),
                                           truth),
         "final_model": state.models[0].round(6).tolist(),
@@ -395,7 +393,8 @@ def run_experiment(
         tick("initial populations", len(seeds_needed))), strict=True))
     fresh = _map_pal_runs([(model, actual, s, m, pops[s], cfg) for s, m in todo],
                           jobs, log_path, tick("PAL runs", len(todo)))
-    results = fresh + [_result_from_log(recs, s, m) for (s, m), recs in done_runs.items()]
+    results = fresh + [_result_from_log(recs, s, m, actual, cfg)
+                       for (s, m), recs in done_runs.items()]
     if twin:
         results += _twin_runs(results, log_path)
     searched = max(r["fitness"] for r in optimum_runs)
@@ -457,11 +456,23 @@ def _optimum_search(cfg: ExperimentConfig) -> dict:
             "seed": cfg.base_seed, "generations": cfg.optimum_generations}
 
 
-def _result_from_log(recs: list[dict], seed: int, method: str) -> dict:
+def _placed(actual: GaitTable, operational: np.ndarray, seed: int, cfg: ExperimentConfig
+            ) -> dict:
+    """A run's final operational turn cycle walked on the actual robot from start poses drawn
+    as a hand placement leaves them (seeded by the run's seed alone, so a resumed experiment
+    gives the same figures)."""
+    fit = placed_fitness(actual.rows, operational, HAND, WALKS,
+                         _rng(cfg.base_seed, seed, STAGE_PLACED), cfg.pal.budget, actual.effects)
+    return summary(fit)
+
+
+def _result_from_log(recs: list[dict], seed: int, method: str, actual: GaitTable,
+                     cfg: ExperimentConfig) -> dict:
     recs = sorted(recs, key=lambda r: r["generation"])
     return {"seed": seed, "method": method,
             "generations": [r["generation"] for r in recs],
             "coverage": [r["operational_fitness"] for r in recs],
             "robot_hours": _hours([r.get("robot_seconds", 0.0) for r in recs]),
             "operational": recs[-1]["operational"],
+            "placed": _placed(actual, parse_turn_cycle(recs[-1]["operational"]), seed, cfg),
             "final_model_error": recs[-1]["model_error"], "final_model": recs[-1]["model"]}

@@ -82,7 +82,10 @@ def test_camera_in_the_loop_gets_the_tracker_fed_results(tmp_path):
     for name, extra in (("tracker", ["--sim-noise", "0,0"]),
                         ("camera", ["--observer", "camera:sim,frames=2"])):
         out = tmp_path / name
-        res = _invoke("evolve", "--out", out, "--budget", "12", *SMALL, *extra)
+        # from the exact start: a search over a placement's stencil of start poses would turn
+        # the camera's sub-millimetre differences in the fitted model into other tests
+        res = _invoke("evolve", "--out", out, "--budget", "12", "--placement-error", "none",
+                      *SMALL, *extra)
         assert res.exit_code == 0, res.output
         runs[name] = ([json.loads(x) for x in (out / "log.jsonl").read_text().splitlines()],
                       [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()])
