@@ -38,9 +38,8 @@ from pac_host.model.table import GaitTable, measured_table, shifted_table
 from pac_host.placement import HAND, WALKS, placed_fitness, summary
 from pac_host.search.optimize import OptimizeConfig, run_chain
 
+# seed streams; STAGE_PLACED draws the start poses a run's final turn cycle is walked from
 STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED = 0, 1, 2, 3
-# The final operational turn cycle is also walked on the actual robot from start poses drawn as
-# a hand placement would leave them: what a lab would see, not only the exact start's figure.
 METHODS = ("full", "partial", "oracle")
 TARGET = 0.9  # punctuations to the target: operational coverage at 90% of the best known
 FINAL_TARGET = 0.95  # and where a run ends, against the best known
@@ -459,8 +458,8 @@ def _optimum_search(cfg: ExperimentConfig) -> dict:
 def _placed(actual: GaitTable, operational: np.ndarray, seed: int, cfg: ExperimentConfig
             ) -> dict:
     """A run's final operational turn cycle walked on the actual robot from start poses drawn
-    as a hand placement leaves them (seeded by the run's seed alone, so a resumed experiment
-    gives the same figures)."""
+    as a hand placement leaves them: what a lab would see, not only the exact start's figure
+    (seeded by the run's seed alone, so a resumed experiment gives the same figures)."""
     fit = placed_fitness(actual.rows, operational, HAND, WALKS,
                          _rng(cfg.base_seed, seed, STAGE_PLACED), cfg.pal.budget, actual.effects)
     return summary(fit)

@@ -429,8 +429,8 @@ class _AnytimeSearch:
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
-        fit = _ranking(models[0], self.pop, self.cfg, effects)
-        pop = self.pop[np.argsort(-fit, kind="stable")]
+        rank, _ = _ranking(models[0], self.pop, self.cfg, effects)
+        pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
         self.pop, rec, chain = anytime.advance(
             models[0], pop, self.cfg.search_evaluations, self.rng, self.cfg.budget, effects,
@@ -443,14 +443,16 @@ class _AnytimeSearch:
 
 
 def _ranking(rows: np.ndarray, pop: np.ndarray, cfg: PALConfig, effects: Sequence[Effect]
-             ) -> np.ndarray:
-    """What an anytime search ranks turn cycles (P, 9, 2) by on model ``rows``: their coverage
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """What an anytime search ranks turn cycles (P, 9, 2) by on model ``rows`` (their coverage
     scores from the start, or with a placement error their search scores pooled over its
-    stencil of start poses (as the search compares them)."""
+    stencil of start poses, as the search compares them), and their coverage scores from the
+    start."""
     error = cfg.placement_error()
     if error is None:
-        return cga.fitness(rows, pop, cfg.budget, effects)
-    return Scorer(rows, cfg.budget, effects, error.stencil()).both(pop)[0]
+        fit = cga.fitness(rows, pop, cfg.budget, effects)
+        return fit, fit
+    return Scorer(rows, cfg.budget, effects, error.stencil()).both(pop)
 
 
 def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
@@ -460,13 +462,11 @@ def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
     With an anytime search the turn cycles were searched at the punctuation, on the model it
     made: this only ranks them on that model, and counts the generations."""
     if cfg.search != "cga":
-        fit = _ranking(state.models[0], state.cga_pop, cfg, state.model_effects)
-        order = np.argsort(-fit, kind="stable")
+        rank, fit = _ranking(state.models[0], state.cga_pop, cfg, state.model_effects)
+        order = np.argsort(-rank, kind="stable")
         state = replace(state, cga_pop=state.cga_pop[order],
                         generation=state.generation + generations)
-        best = state.cga_pop[:1]
-        return state, int(fitness_of_score(cga.fitness(state.models[0], best, cfg.budget,
-                                                       state.model_effects)[0]))
+        return state, int(fitness_of_score(fit[order[0]]))
     pop, best = cga.evolve(state.models[0], state.cga_pop, generations, rng, cfg.cga_config(),
                            state.model_effects)
     state = replace(state, cga_pop=pop, generation=state.generation + generations)

@@ -27,7 +27,7 @@ from pac_host.model.effects import Effect
 # The stencil moves each of x, y and heading this many standard deviations either way. Measured
 # on the shifted table (60 s searches, seeds 0-2, each scored from 200 drawn start poses at 0.5
 # cm and 1 deg): mean fitness 28.1 searching from the exact start alone, 29.5 with the stencil
-# at one standard deviation, 31.3 at two (docs/search.md, "Searching for placement error").
+# at one standard deviation, 31.3 at two (docs/search.md, "Searching for a robot placed by hand").
 STENCIL_SDS = 2.0
 MAX_CM, MAX_DEG = 30.0, 45.0  # beyond these a "placement error" is a different start
 
