@@ -14,6 +14,9 @@ quiet 2-core machine (``library_on_changed``, whose learnt model carries a trans
 now that the compiled kernel runs it); the full measurement, every method with
 full, partial and the oracle, takes hours:
 ``python bench/run.py --only learning``; ``--quick`` runs 2 seeds on each robot.
+Every method's final turn cycles are also walked from 200 start poses drawn as a hand placement
+leaves them (``placed_mean``, ``placed_p10_mean``); method ``placed`` is the default searching
+for such a robot (``--placement-error 0.5,1``, what ``pac-host evolve`` does by default).
 Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
 """
@@ -41,6 +44,8 @@ METHODS = {
     "default": profiles.apply("default", PALConfig()),
     "fit_ga": profiles.apply("default", PALConfig(model_generations=40)),  # + the model GA
     "paper_tests": profiles.apply("default", PALConfig(tests="paper")),  # the paper's tests
+    # the default searching for a robot placed by hand (evolve's default: pac_host.placement)
+    "placed": profiles.apply("default", PALConfig(placement="0.5,1")),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find
@@ -78,7 +83,11 @@ def measure(robot_names, methods, seeds: int, out_root: Path, generations: int =
                 runs = [r for r in s["runs"] if r["method"] == m]
                 err = np.array([[[e["F"], e["T"], e["dH"]] for e in r["final_model_error"]]
                                 for r in runs])
+                placed = np.array([[r["placed"]["mean"], r["placed"]["p10"]] for r in runs])
                 entry[m] = {**fig, "finals": [r["coverage"][-1] for r in runs],
+                            # each final turn cycle walked from 200 drawn start poses
+                            "placed_mean": float(placed[:, 0].mean().round(2)),
+                            "placed_p10_mean": float(placed[:, 1].mean().round(2)),
                             "model_error_mean_FTdH": err.mean(axis=(0, 1)).round(3).tolist(),
                             "model_error_max_row": float(err.max(axis=2).mean(axis=0).max()
                                                          .round(3))}
