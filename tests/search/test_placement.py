@@ -16,6 +16,7 @@ from pac_host.coverage import (
     START_POSE,
     Scorer,
     fitness_of_search_score,
+    parse_turn_cycle,
     pooled_search_score,
     search_score,
     simulate,
@@ -125,13 +126,33 @@ def test_optimize_cli_placement_json(tmp_path):
     assert "10th percentile" in res.output
 
 
+def test_simulate_cli_walks_a_turn_cycle_from_drawn_poses():
+    tc = "29:7,21:13,18:2,7:21,21:1,13:5,20:7,23:8,2:10"  # sharp: 43 from the exact start
+    args = ["simulate", "--table", "shifted", "--turn-cycle", tc, "--placement-error", "0.5,1",
+            "--walks", "40", "--seed", "3", "--json"]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    expect = placed_fitness(shifted_table().rows, parse_turn_cycle(tc), PlacementError(0.5, 1.0),
+                            40, np.random.default_rng(3))
+    assert doc["fitness"] == 43
+    assert doc["placed"] == {"placement": "0.5,1", "seed": 3, **summary(expect)}
+    assert doc["placed"]["mean"] < 43  # the drawn poses lose what the exact start grazes
+    text = CliRunner().invoke(main, args[:-1])
+    assert text.exit_code == 0 and f"mean fitness {summary(expect)['mean']}" in text.output
+    # without the option: the exact start alone, as before
+    plain = json.loads(CliRunner().invoke(main, args[:5] + ["--json"]).output)
+    assert "placed" not in plain and plain["fitness"] == 43
+
+
 @pytest.mark.parametrize("text", ["abc", "1", "1,2,3", "-1,1", "1,nan", "100,1"])
 def test_bad_placement_is_one_line_and_exit_2(text):
     with pytest.raises(InputError):
         parse_placement(text)
-    res = CliRunner().invoke(main, ["optimize", "--evaluations", "10", "--placement-error", text])
-    assert res.exit_code == 2, res.output
-    assert len(res.output.strip().splitlines()) == 1 and "placement" in res.output
+    for cmd in (["optimize", "--evaluations", "10"], ["simulate", "--turn-cycle", "1:1"]):
+        res = CliRunner().invoke(main, [*cmd, "--placement-error", text])
+        assert res.exit_code == 2, res.output
+        assert len(res.output.strip().splitlines()) == 1 and "placement" in res.output
 
 
 def test_placement_needs_an_anytime_search():
