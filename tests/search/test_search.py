@@ -257,6 +257,7 @@ def test_the_best_known_turn_cycles_score_as_recorded():
 
     from pac_host import robots
     from pac_host.model import resolve_table
+    from pac_host.placement import parse_placement, placed_fitness, summary
 
     doc = json.loads((Path(__file__).resolve().parents[2] / "bench" / "best_known.json")
                      .read_text())
@@ -266,6 +267,12 @@ def test_the_best_known_turn_cycles_score_as_recorded():
         table = robots.build(name) if name in robots.ROBOTS else resolve_table(name)
         cov = simulate(table.rows, parse_turn_cycle(rec["turn_cycle"]), 200, table.effects)
         assert cov.row(0)["fitness"] == rec["fitness"], name
+        if "placed" in rec:  # the best known for a robot placed by hand
+            pl = rec["placed"]
+            fit = placed_fitness(table.rows, parse_turn_cycle(pl["turn_cycle"]),
+                                 parse_placement(pl["placement"]), pl["walks"],
+                                 np.random.default_rng(pl["seed"]), 200, table.effects)
+            assert summary(fit)["mean"] == pl["mean"], name
 
 
 def test_a_closing_kick_keeps_a_repeating_loops_net_move():
