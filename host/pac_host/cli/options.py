@@ -52,14 +52,18 @@ def effect_option():
     )
 
 
-def placement_option(default: str | None = "none", shown: str | bool = True):
-    """``--placement-error POS_CM,HEAD_DEG``: search for sweeps that keep their coverage when the
-    robot is placed by hand with these standard deviations (:mod:`pac_host.placement`)."""
+_SEARCH_HELP = ("Score each turn cycle from a stencil of start poses around the start, for a "
+                "robot placed by hand with these standard deviations (none: the exact start).")
+
+
+def placement_option(default: str | None = "none", shown: str | bool = True,
+                     help: str = _SEARCH_HELP):
+    """``--placement-error POS_CM,HEAD_DEG``: a robot placed by hand with these standard
+    deviations (:mod:`pac_host.placement`); by default the searches' help (sweeps that keep
+    their coverage so placed)."""
     return click.option(
         "--placement-error", "placement", default=default, show_default=shown,
-        metavar="POS_CM,HEAD_DEG|none",
-        help="Score each turn cycle from a stencil of start poses around the start, for a "
-             "robot placed by hand with these standard deviations (none: the exact start).")
+        metavar="POS_CM,HEAD_DEG|none", help=help)
 
 
 def _load_modules(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) -> None:

@@ -31,7 +31,8 @@ from pac_host.placement import WALKS, parse_placement, placed_fitness, summary
 @click.option("--budget", default=DEFAULT_BUDGET, show_default=True,
               type=Bounded(limits.SIM_BUDGET),
               help="Gait cycles to run.")
-@placement_option()
+@placement_option(help="Also walk the turn cycle from start poses drawn as a hand placement "
+                       "with these standard deviations leaves them (none: only the exact start).")
 @click.option("--walks", default=WALKS, show_default=True, type=click.IntRange(1, 100_000),
               help="With --placement-error: start poses drawn.")
 @click.option("--seed", default=0, show_default=True,
