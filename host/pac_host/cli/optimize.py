@@ -12,6 +12,7 @@ from pac_host.cli.options import (
     Bounded,
     effect_option,
     load_with_effects,
+    placed_text,
     placement_option,
     table_option,
 )
@@ -72,10 +73,8 @@ def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains,
     for k in ("blocks_covered", "blocks_covered_once", "fitness", "repeat_visits"):
         click.echo(f"{k}: {res[k]}")
     if "placed" in res:
-        p = res["placed"]
         click.echo(f"from the placement stencil: mean fitness {res['stencil_fitness']:.2f}; "
-                   f"from {p['walks']} drawn start poses: mean {p['mean']}, median "
-                   f"{p['median']:g}, 10th percentile {p['p10']:g}")
+                   + placed_text(res["placed"], cfg.placement))
     click.echo(f"{res['evaluations']} evaluations in {res['seconds']:.1f} s")
     click.echo("best fitness over time: " + ", ".join(f"{f:.3g} at {t:.1f} s" for t, f in growth))
     if json_out is not None:

@@ -66,6 +66,14 @@ def placement_option(default: str | None = "none", shown: str | bool = True,
         metavar="POS_CM,HEAD_DEG|none", help=help)
 
 
+def placed_text(placed: dict, error) -> str:
+    """How the commands print a turn cycle's fitness from drawn start poses
+    (:func:`pac_host.placement.summary` of walks drawn with ``error``, a PlacementError)."""
+    return (f"from {placed['walks']} start poses drawn at {error.pos_cm:g} cm, "
+            f"{error.head_deg:g} deg: mean fitness {placed['mean']}, median "
+            f"{placed['median']:g}, 10th percentile {placed['p10']:g}")
+
+
 def _load_modules(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) -> None:
     try:
         for path in value:

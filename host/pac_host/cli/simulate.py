@@ -14,6 +14,7 @@ from pac_host.cli.options import (
     effect_option,
     effects_module_option,
     load_with_effects,
+    placed_text,
     placement_option,
     table_option,
 )
@@ -81,9 +82,7 @@ def simulate_cmd(table_spec, effect_specs, turn_cycle, budget, placement, walks,
     for k, v in cov.row(0).items():
         click.echo(f"{k}: {v}")
     if placed is not None:
-        click.echo(f"from {placed['walks']} start poses drawn at {error.pos_cm:g} cm, "
-                   f"{error.head_deg:g} deg: mean fitness {placed['mean']}, median "
-                   f"{placed['median']:g}, 10th percentile {placed['p10']:g}")
+        click.echo(placed_text(placed, error))
 
 
 def register(main: click.Group) -> None:
