@@ -17,6 +17,8 @@ full, partial and the oracle, takes hours:
 Every method's final turn cycles are also walked from 200 start poses drawn as a hand placement
 leaves them (``placed_mean``, ``placed_p10_mean``); method ``placed`` is the default searching
 for such a robot (``--placement-error 0.5,1``, what ``pac-host evolve`` does by default).
+Method ``walking`` is the default with 20 million search evaluations a punctuation, a part of
+what the time a real robot walks its tests gives the search (``pac-host evolve --port``).
 Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
 """
@@ -26,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +38,7 @@ from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import measured_table, shifted_table
 from pac_host.pal import PAPER, PALConfig
 
+WALKING = 20_000_000  # search evaluations a punctuation for method "walking"
 # the learning methods compared: the paper's, and the whole-table correction
 METHODS = {
     "paper": PALConfig(**PAPER),  # the paper's six differences, partial recombination
@@ -46,6 +50,10 @@ METHODS = {
     "paper_tests": profiles.apply("default", PALConfig(tests="paper")),  # the paper's tests
     # the default searching for a robot placed by hand (evolve's default: pac_host.placement)
     "placed": profiles.apply("default", PALConfig(placement="0.5,1")),
+    # the default with the search a real robot's walking pays for, in part: 20 million
+    # evaluations a punctuation (about a minute of one core; `evolve --port` searches while
+    # the robot walks its tests, some 13 minutes a punctuation)
+    "walking": replace(profiles.apply("default", PALConfig()), search_evaluations=WALKING),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find
@@ -133,9 +141,12 @@ if __name__ == "__main__":
     ap.add_argument("--optimum-runs", type=int, default=2)
     ap.add_argument("--optimum-evaluations", type=int, default=10_000_000)
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--generations", type=int, default=1000,
+                    help="CGA generations a run (a punctuation every 40)")
     ap.add_argument("--out", default="out/bench-learning")
     a = ap.parse_args()
     res = measure(a.robots.split(","), a.methods.split(","), a.seeds, Path(a.out),
-                  optimum_runs=a.optimum_runs, optimum_evaluations=a.optimum_evaluations,
+                  generations=a.generations, optimum_runs=a.optimum_runs,
+                  optimum_evaluations=a.optimum_evaluations,
                   jobs=a.jobs, recombination=tuple(a.recombination.split(",")))
     print(json.dumps({"results": res, "targets": _targets(res, a.seeds)}, indent=1))
