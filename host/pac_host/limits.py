@@ -50,6 +50,7 @@ GENERATIONS = Bound(0, 100_000)  # CGA generations (the paper: 1000)
 MODEL_GENERATIONS = Bound(0, 10_000)  # model GA generations per punctuation (the paper: 40)
 INTERVAL = Bound(1, 100_000)  # CGA generations between punctuations
 SEEDS = Bound(1, 10_000)
+SEED = Bound(0, 2**63 - 1, "numpy's generators take non-negative seeds")  # a --seed
 RUNS = Bound(1, 1_000)  # long optimum runs
 CGA_POPULATION = Bound(4, 100_000)
 MODEL_POPULATION = Bound(4, 10_000)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import click
 
+from pac_host import limits
 from pac_host.cli.options import (
     effect_option,
     effects_module_option,
@@ -134,7 +135,8 @@ def _report_downloads(stamp: object, seen: int) -> int:
     metavar="POS_CM,HEADING_DEG",
     help="Standard deviation of the tracker's Gaussian noise.",
 )
-@click.option("--seed", default=0, show_default=True, type=int, help="Seeds noise and faults.")
+@click.option("--seed", default=0, show_default=True,
+              type=click.IntRange(limits.SEED.lo, limits.SEED.hi), help="Seeds noise and faults.")
 @click.option(
     "--eeprom",
     type=click.Path(dir_okay=False),

@@ -55,6 +55,23 @@ def test_out_of_range_counts_are_one_line(tmp_path, args, words):
     assert not (tmp_path / "o").exists()  # refused before anything was written
 
 
+@pytest.mark.parametrize("args", [
+    ["simulate", "--turn-cycle", "1:2", "--placement-error", "0.5,1", "--seed", "-1"],
+    ["optimize", "--evaluations", "100", "--seed", "-1"],
+    ["experiment", "--seed", "-1"],
+    ["evolve", "--seed", "-1"],
+    ["evolve", "--sim-seed", "-1"],
+    ["measure", "--seed", "-1"],
+    ["diagnose", "--seed", "-1"],
+    ["camera", "render", "--seed", "-1"],
+])
+def test_a_negative_seed_is_one_line(tmp_path, args):
+    """numpy's generators take non-negative seeds: refused before any work, not a traceback."""
+    one_line_exit_2([*args, "--out", str(tmp_path / "o")] if args[0] in ("experiment", "evolve")
+                    else args, f"{args[-2]} must be 0..")
+    assert not (tmp_path / "o").exists()
+
+
 def test_help_shows_the_ranges():
     res = CliRunner().invoke(main, ["simulate", "--help"])
     assert "--budget 0..65535" in res.output

@@ -73,3 +73,8 @@ def test_bad_specs_name_the_problem(spec, words):
         parse_target("drop", spec)
     res = CliRunner().invoke(pac_sim_main, ["--drop-at", spec])
     assert res.exit_code == 2 and "--drop-at" in res.output and "Traceback" not in res.output
+
+
+def test_a_negative_seed_is_refused_before_the_emulator_starts():
+    res = CliRunner().invoke(pac_sim_main, ["--seed", "-1"])
+    assert res.exit_code == 2 and "--seed" in res.output and "Traceback" not in res.output

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import click
 
+from pac_host import limits
+from pac_host.cli.options import Bounded
 from pac_host.errors import InputError
 
 
@@ -96,7 +98,7 @@ def sheets_cmd(out_dir: Path, layout_path: Path | None) -> None:
 @click.option("--board", "n_board", default=12, show_default=True, type=int,
               help="Frames of the lens board.")
 @click.option("--noise", default=3.0, show_default=True, type=float, help="Grey levels.")
-@click.option("--seed", default=0, show_default=True, type=int)
+@click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED))
 def render_cmd(out_dir: Path, poses, n_floor: int, n_board: int, noise: float, seed: int) -> None:
     """Frames of the virtual camera (the reference set-up: 640x480, 2.5 m up, a distorting
     lens): OUT/floor, OUT/board and OUT/robot folders and OUT/truth.json, to try calibrate

@@ -7,7 +7,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from pac_host.cli.options import effects_module_option
+from pac_host import limits
+from pac_host.cli.options import Bounded, effects_module_option
 from pac_host.diagnose import diagnose, read_runs, split_runs
 from pac_host.diagnose.report import summary, to_json, write_json, write_plots
 from pac_host.errors import InputError
@@ -24,7 +25,7 @@ from pac_host.model import resolve_table, save_table
                    "[default: 0.3].")
 @click.option("--holdout", "holdout_path", type=click.Path(dir_okay=False),
               help="Held-out runs in their own file; then every run of --runs is for fitting.")
-@click.option("--seed", default=0, show_default=True, type=int,
+@click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED),
               help="Seed of the split and the bootstrap.")
 @click.option("--library", default=None, metavar="NAME,...",
               help="Try only these effects (default: all of the library, with the effects "

@@ -42,7 +42,7 @@ from pac_host.robot.recovery import describe_counts
               type=click.Choice(["coverage", "steps"]),
               help="Model GA score: the paper's six coverage differences, or the observed "
                    "paths' one-step residuals (needs a tracker, not manual counts).")
-@click.option("--seed", default=0, show_default=True, type=int,
+@click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED),
               help="Seeds the GAs and the emulator's per-run tracker noise.")
 @click.option("--budget", default=200, show_default=True, type=Bounded(limits.BUDGET),
               help="Gait cycles per test run.")

@@ -43,7 +43,8 @@ from pac_host.plots import experiment_plots
               help="Directory for summary.json, log.jsonl, optimum.json and the PNG plots.")
 @click.option("--jobs", default=1, show_default=True, type=click.IntRange(1, 64),
               help="Worker processes; results do not depend on it.")
-@click.option("--seed", "base_seed", default=0, show_default=True, type=int,
+@click.option("--seed", "base_seed", default=0, show_default=True,
+              type=Bounded(limits.SEED),
               help="Base seed: the whole experiment is a function of it.")
 @click.option("--actual", "actual_spec", default="shifted", show_default=True,
               metavar="measured|shifted|FILE",

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import click
 
-from pac_host.cli.options import effects_module_option, load_with_effects
+from pac_host import limits
+from pac_host.cli.options import Bounded, effects_module_option, load_with_effects
 from pac_host.errors import InputError
 from pac_host.robot.connect import EmulatorOptions
 
@@ -33,7 +34,7 @@ OPTIONS = [
                  help="Emulator: standard deviation of the tracker's noise."),
     click.option("--sim-realtime", default=0.0, show_default=True, type=float,
                  metavar="FACTOR", help="Emulator: wall time per emulated second (1 = real)."),
-    click.option("--sim-seed", default=0, show_default=True, type=int,
+    click.option("--sim-seed", default=0, show_default=True, type=Bounded(limits.SEED),
                  help="Emulator: seeds its byte faults (tracker noise is seeded per run)."),
     click.option("--drop-prob", default=0.0, type=float,
                  help="Emulator: drop each byte on the line with this probability."),

@@ -43,7 +43,7 @@ def _pose(text: str) -> tuple[float, float, float]:
               help="Gait cycles per placement.")
 @click.option("--start", default=",".join(f"{v:g}" for v in MEASURE_START), show_default=True,
               metavar="X,Y,H", help="The known pose each repeat starts from.")
-@click.option("--seed", default=0, show_default=True, type=int,
+@click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED),
               help="Seeds the emulator's per-run tracker noise.")
 @click.option("--table", "table_spec", default="measured", show_default=True,
               metavar="measured|shifted|FILE", help="The current table to compare with.")

@@ -40,7 +40,7 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
               help="Share of a gene's 2,016 changes a climb scores each time it looks at the "
                    "gene (1: every change, an exact local optimum).")
 @placement_option()
-@click.option("--seed", default=0, show_default=True, type=int)
+@click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED))
 @click.option("--jobs", default=1, show_default=True, type=click.IntRange(1, 64),
               help="Processes running chains side by side.")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),

@@ -36,7 +36,7 @@ from pac_host.placement import WALKS, parse_placement, placed_fitness, summary
                        "with these standard deviations leaves them (none: only the exact start).")
 @click.option("--walks", default=WALKS, show_default=True, type=click.IntRange(1, 100_000),
               help="With --placement-error: start poses drawn.")
-@click.option("--seed", default=0, show_default=True,
+@click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED),
               help="With --placement-error: seed of the drawn start poses.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object on stdout.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
