@@ -19,6 +19,9 @@ leaves them (``placed_mean``, ``placed_p10_mean``); method ``placed`` is the def
 for such a robot (``--placement-error 0.5,1``, what ``pac-host evolve`` does by default).
 Method ``walking`` is the default with 20 million search evaluations a punctuation, a part of
 what the time a real robot walks its tests gives the search (``pac-host evolve --port``).
+Methods ``pooled`` and ``walking_pooled`` are ``default`` and ``walking`` with each turn cycle
+scored on the model and three draws from its posterior (``--search-models 4``), the model's
+own best tested beside the pooled best.
 Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
 """
@@ -54,6 +57,10 @@ METHODS = {
     # evaluations a punctuation (about a minute of one core; `evolve --port` searches while
     # the robot walks its tests, some 13 minutes a punctuation)
     "walking": replace(profiles.apply("default", PALConfig()), search_evaluations=WALKING),
+    # the same two, each turn cycle scored on the model and three draws from its posterior
+    "pooled": profiles.apply("default", PALConfig(search_models=4)),
+    "walking_pooled": replace(profiles.apply("default", PALConfig(search_models=4)),
+                              search_evaluations=WALKING),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find

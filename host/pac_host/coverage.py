@@ -442,7 +442,10 @@ class Scorer:
 
     ``start_pose`` is one pose (3,) or K of them (K, 3): with K, each turn cycle is walked from
     every one and :meth:`both`'s search scores are pooled over the walks
-    (:func:`pooled_search_score`; :mod:`pac_host.placement` makes such poses).
+    (:func:`pooled_search_score`; :mod:`pac_host.placement` makes such poses). ``models``
+    (M, 32, 3), other tables the robot may be (draws from a model's posterior), are walked
+    too, from every start pose, and pooled the same way: a turn cycle that relies on rows the
+    tables disagree on scores lower.
 
     >>> from pac_host.model import shifted_table
     >>> genes = parse_turn_cycle("12:60,3:10")
@@ -453,16 +456,27 @@ class Scorer:
 
     def __init__(self, rows: np.ndarray, budget: int = DEFAULT_BUDGET,
                  effects: Sequence[Effect] = (),
-                 start_pose: Sequence[float] = START_POSE) -> None:
+                 start_pose: Sequence[float] = START_POSE,
+                 models: np.ndarray | None = None) -> None:
         self.rows = np.asarray(rows, dtype=np.float64)
         self.budget, self.effects = check_budget(budget), tuple(effects)
         self.start_pose = np.asarray(start_pose, dtype=np.float64)
         self.starts = np.atleast_2d(self.start_pose)
-        self._runs = [_Runner(self.rows, self.budget, self.effects, p, False)
-                      for p in self.starts]
+        tables = [self.rows]
+        if models is not None:
+            tables += list(np.asarray(models, dtype=np.float64).reshape(-1, *self.rows.shape))
+        # every walk a turn cycle gets: each table from each start pose, the given table
+        # from the first pose first
+        self._walks = [(t, p) for t in tables for p in self.starts]
+        self._runs = [_Runner(t, self.budget, self.effects, p, False) for t, p in self._walks]
         self._run = self._runs[0]
         self._compiled = (self.rows.ndim == 2 and self._run.compiled
                           and coverage_jit.AVAILABLE)
+
+    @property
+    def walks(self) -> int:
+        """Walks a turn cycle costs: start poses times tables."""
+        return len(self._walks)
 
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         """Scores (P,) of turn cycles (P, 9, 2)."""
@@ -470,15 +484,15 @@ class Scorer:
 
     def both(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Search scores (:func:`search_score`) and scores, (P,) each, of turn cycles
-        (P, 9, 2). From K start poses: the pooled search scores, and the scores of the walks
-        from the first pose."""
+        (P, 9, 2). Over several walks (start poses, tables): the pooled search scores, and the
+        scores of the walks on the given table from the first pose."""
         genes = np.asarray(genes, dtype=np.int64)
         walks = []
-        for run, pose in zip(self._runs, self.starts, strict=True):
+        for run, (table, pose) in zip(self._runs, self._walks, strict=True):
             if self._compiled:
                 _, _, fitness, repeat, reached = run.score_compiled(genes, 1)
             else:
-                cov = simulate(self.rows, genes, self.budget, self.effects, pose)
+                cov = simulate(table, genes, self.budget, self.effects, pose)
                 fitness, repeat, reached = cov.fitness, cov.repeat_visits, cov.reached_at
             walks.append((fitness, reached, repeat))
         fitness, reached, repeat = walks[0]

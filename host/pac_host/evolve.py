@@ -71,6 +71,7 @@ class EvolveConfig:
     tests: str = pal.PALConfig.tests
     operational: str = pal.PALConfig.operational
     placement: str = pal.PALConfig.placement
+    search_models: int = pal.PALConfig.search_models
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -98,6 +99,7 @@ class EvolveConfig:
             model_population=self.model_population, budget=self.budget,
             correction=self.correction, structure=self.structure, tests=self.tests,
             operational=self.operational, placement=self.placement, search=self.search,
+            search_models=self.search_models,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

@@ -135,7 +135,7 @@ def pal_run(
     fields = {**_pal_fields(cfg.pal), "method": method, "generations": cfg.generations}
     if method == "oracle":
         fields.update(method="partial", model_population=1, model_generations=0,
-                      correction="ga", tests="paper")
+                      correction="ga", tests="paper", search_models=1)  # the model is sure
         model = actual
     pcfg = pal.PALConfig(**fields)
     rng = _rng(cfg.base_seed, seed, STAGE_PAL)

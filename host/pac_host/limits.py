@@ -57,4 +57,5 @@ MODEL_POPULATION = Bound(4, 10_000)
 REPEATS = Bound(2, 1_000)  # measure: placements per gait cycle id
 EVALUATIONS = Bound(1, 10**11)  # coverage evaluations of one search (about 3 days on a core)
 SEARCH_EVALUATIONS = Bound(1, 10**9)  # anytime search per punctuation (about an hour)
+SEARCH_MODELS = Bound(1, 64)  # tables an anytime search pools each turn cycle over
 CHAINS = Bound(1, 1_024)  # independent chains of one search

@@ -137,6 +137,10 @@ class PALConfig:
     # for a robot placed by hand with these standard deviations (pac_host.placement); "none":
     # from the exact start alone
     placement: str = "none"
+    # With an anytime search: score each turn cycle on this many of the corrected model's
+    # population (the model, then draws from its posterior), pooled, so a turn cycle whose
+    # rows the tests have not pinned scores lower; 1: on the model alone
+    search_models: int = 1
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -159,6 +163,13 @@ class PALConfig:
                              f"{self.search!r}")
         if self.search != "cga":
             limits.SEARCH_EVALUATIONS.check(self.search_evaluations, "--search-evaluations")
+        limits.SEARCH_MODELS.check(self.search_models, "--search-models")
+        if self.search_models > 1 and self.search == "cga":
+            raise InputError("--search-models needs an anytime profile (the paper's CGA "
+                             "scores on one model)")
+        if self.search_models > self.model_population:
+            raise InputError(f"--search-models {self.search_models} is more than the "
+                             f"{self.model_population} models there are")
         if self.placement_error() is not None and self.search == "cga":
             raise InputError("--placement-error needs an anytime profile (the paper's CGA "
                              "scores from the exact start)")
@@ -344,8 +355,12 @@ def choose_tests(state: PALState, rng: np.random.Generator, cfg: PALConfig) -> n
     if cfg.tests != "informative":
         return np.concatenate([best[None], pert])
     row_var = state.models.var(axis=0).sum(axis=-1)
+    hopeful = None
+    if cfg.search_models > 1:  # the best was chosen for being sure: test the model's hope too
+        alone = cga.fitness(state.models[0], state.cga_pop, cfg.budget, state.model_effects)
+        hopeful = state.cga_pop[int(np.argmax(alone))]
     return test_selection.choose(best, pert, state.cga_pop, state.models, row_var, cfg.budget,
-                                 state.model_effects)
+                                 state.model_effects, hopeful=hopeful)
 
 
 def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult],
@@ -418,7 +433,8 @@ class _AnytimeSearch:
             self.state.models[0], self.pop, None, self.rng, self.cfg.budget,
             self.state.model_effects, self.cfg.search,
             cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=carried,
-            placement=self.cfg.placement_error())
+            placement=self.cfg.placement_error(),
+            models=_pooled_models(self.state.models, self.cfg))
         self.chain = chain.to_json()
         self.walking_evaluations = rec["evaluations"]
         self.walking_best = rec.get("best_score", -1)
@@ -429,12 +445,13 @@ class _AnytimeSearch:
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
-        rank, _ = _ranking(models[0], self.pop, self.cfg, effects)
+        rank, _ = _ranking(models, self.pop, self.cfg, effects)
         pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
         self.pop, rec, chain = anytime.advance(
             models[0], pop, self.cfg.search_evaluations, self.rng, self.cfg.budget, effects,
-            self.cfg.search, chain=carried, placement=self.cfg.placement_error())
+            self.cfg.search, chain=carried, placement=self.cfg.placement_error(),
+            models=_pooled_models(models, self.cfg))
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
         if self.walking_evaluations is not None:
@@ -442,17 +459,23 @@ class _AnytimeSearch:
             self.record["best_score_while_walking"] = self.walking_best
 
 
-def _ranking(rows: np.ndarray, pop: np.ndarray, cfg: PALConfig, effects: Sequence[Effect]
+def _pooled_models(models: np.ndarray, cfg: PALConfig) -> np.ndarray | None:
+    """The tables besides the model (``models[0]``) an anytime search pools its scores over."""
+    return models[1:cfg.search_models] if cfg.search_models > 1 else None
+
+
+def _ranking(models: np.ndarray, pop: np.ndarray, cfg: PALConfig, effects: Sequence[Effect]
              ) -> tuple[np.ndarray, np.ndarray]:
-    """What an anytime search ranks turn cycles (P, 9, 2) by on model ``rows`` (their coverage
-    scores from the start, or with a placement error their search scores pooled over its
-    stencil of start poses, as the search compares them), and their coverage scores from the
-    start."""
-    error = cfg.placement_error()
-    if error is None:
-        fit = cga.fitness(rows, pop, cfg.budget, effects)
+    """What an anytime search ranks turn cycles (P, 9, 2) by on the model ``models[0]`` (their
+    coverage scores from the start, or with a placement error or pooled models their search
+    scores pooled over the walks, as the search compares them), and their coverage scores on
+    the model from the start."""
+    error, pooled = cfg.placement_error(), _pooled_models(models, cfg)
+    if error is None and pooled is None:
+        fit = cga.fitness(models[0], pop, cfg.budget, effects)
         return fit, fit
-    return Scorer(rows, cfg.budget, effects, error.stencil()).both(pop)
+    poses = START_POSE if error is None else error.stencil()
+    return Scorer(models[0], cfg.budget, effects, poses, pooled).both(pop)
 
 
 def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
@@ -462,7 +485,7 @@ def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
     With an anytime search the turn cycles were searched at the punctuation, on the model it
     made: this only ranks them on that model, and counts the generations."""
     if cfg.search != "cga":
-        rank, fit = _ranking(state.models[0], state.cga_pop, cfg, state.model_effects)
+        rank, fit = _ranking(state.models, state.cga_pop, cfg, state.model_effects)
         order = np.argsort(-rank, kind="stable")
         state = replace(state, cga_pop=state.cga_pop[order],
                         generation=state.generation + generations)

@@ -73,12 +73,20 @@ def choose(
     effects=(),
     n_tests: int = 2,
     n_candidates: int = DEFAULT_CANDIDATES,
+    hopeful: np.ndarray | None = None,
 ) -> np.ndarray:
     """The best turn cycle and the ``n_tests`` candidates the models disagree on most.
 
     ``perturbed`` are the paper's perturbations (candidates too); ``row_var`` (32,) is the
-    posterior variance of each row (summed over components), the tie-break.
+    posterior variance of each row (summed over components), the tie-break. ``hopeful``, when
+    the best was chosen for being sure on every model (a search pooled over the posterior):
+    the best turn cycle on the model alone, which takes the first test after the best, so the
+    rows the model is hopeful about get tested.
     """
+    if hopeful is not None and hopeful.tobytes() != best.tobytes() and n_tests > 0:
+        rest = choose(best, perturbed, cga_pop[~(cga_pop == hopeful).all(axis=(1, 2))],
+                      models, row_var, budget, effects, n_tests - 1, n_candidates)
+        return np.concatenate([rest[:1], hopeful[None], rest[1:]])
     cands = np.concatenate([perturbed, distinct_candidates(cga_pop, n_candidates)])
     _, keep = np.unique(cands.reshape(len(cands), -1), axis=0, return_index=True)
     keep = np.sort(keep)

@@ -174,11 +174,11 @@ def test_anytime_search_with_placement_ranks_by_the_pooled_score():
     assert pooled[0] >= scorer.both(pop[:1])[0][0]
     # the front is the pooled best the search found, not the exact start's best
     cfg = pal.PALConfig(search="ils", search_evaluations=10, placement="0.5,1")
-    rank, scores = pal._ranking(rows, out, cfg, ())
+    rank, scores = pal._ranking(rows[None], out, cfg, ())
     np.testing.assert_array_equal(rank, pooled)
     np.testing.assert_array_equal(scores, cga.fitness(rows, out, 200))  # from the start
-    exact, scores = pal._ranking(rows, out, pal.PALConfig(search="ils", search_evaluations=10),
-                                 ())
+    exact, scores = pal._ranking(rows[None], out,
+                                 pal.PALConfig(search="ils", search_evaluations=10), ())
     np.testing.assert_array_equal(exact, cga.fitness(rows, out, 200))
     np.testing.assert_array_equal(scores, exact)
 

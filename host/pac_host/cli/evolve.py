@@ -16,6 +16,7 @@ from pac_host.cli.options import (
     profile_option,
     profile_pal,
     search_evaluations_option,
+    search_models_option,
 )
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
@@ -61,6 +62,7 @@ from pac_host.robot.recovery import describe_counts
 @learning_options
 @profile_option()
 @search_evaluations_option()
+@search_models_option()
 @click.option("--search-while-walking/--no-search-while-walking", default=None,
               help="Also search while the robot walks the tests, on the model they were chosen "
                    "on (its 13 minutes become search time; the run is then not reproducible "
@@ -69,7 +71,7 @@ from pac_host.robot.recovery import describe_counts
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
                correction, structure, tests, operational, placement, profile, search_evaluations,
-               search_while_walking, port, observer_spec, placer, **sim) -> None:
+               search_models, search_while_walking, port, observer_spec, placer, **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
     Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
@@ -110,7 +112,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         learn = profile_pal(profile, search_evaluations, model_generations,
                             dict(model_fitness=model_fitness, correction=correction,
                                  structure=structure, tests=tests, operational=operational,
-                                 placement=placement))
+                                 placement=placement, search_models=search_models))
         if placement is None:  # a robot is placed by hand (or seen through a noisy tracker)
             learn = replace(learn, placement="none" if learn.search == "cga" else HAND.to_text())
         if search_while_walking is None:
@@ -128,7 +130,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            model=_spec(model_spec), robot=_robot(port, observer_spec, sim),
                            correction=learn.correction, structure=learn.structure,
                            tests=learn.tests, operational=learn.operational,
-                           placement=learn.placement)
+                           placement=learn.placement, search_models=learn.search_models)
         cfg.check()
     emu = emulator_options(sim, port)
     with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:

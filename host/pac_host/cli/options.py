@@ -120,6 +120,14 @@ def search_evaluations_option():
              "overrides the profile's).")
 
 
+def search_models_option():
+    return click.option(
+        "--search-models", type=Bounded(limits.SEARCH_MODELS), default=1, show_default=True,
+        help="Score each turn cycle on this many tables, the corrected model and draws from "
+             "its posterior, pooled: the search prefers turn cycles whose rows the tests have "
+             "pinned (an anytime profile; each table costs an evaluation).")
+
+
 def profile_pal(profile: str, search_evaluations: int | None, model_generations: int | None,
                 options: dict, **fields):
     """The PAL settings of a profile: ``fields`` under it, the profile's overrides, then those

@@ -29,7 +29,8 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
             budget: int = DEFAULT_BUDGET, effects: Sequence[Effect] = (), method: str = "ils",
             cancelled: Callable[[], bool] | None = None,
             chain: Chain | None = None,
-            placement: PlacementError | None = None) -> tuple[np.ndarray, dict, Chain]:
+            placement: PlacementError | None = None,
+            models: np.ndarray | None = None) -> tuple[np.ndarray, dict, Chain]:
     """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
     ``evaluations`` None: until ``cancelled`` says stop (it must be given then).
@@ -40,7 +41,9 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     to carry on. ``cancelled`` is polled between batches: a cancelled search stops early (its
     caller discards the result). With a ``placement`` error the search scores each turn cycle
     from its stencil of start poses (:class:`~pac_host.search.local.Objective`; a turn cycle
-    costs seven evaluations).
+    costs seven evaluations); with ``models``, other tables the robot may be, on them too,
+    pooled (an evaluation is one walk), and the best turn cycle on ``rows`` alone comes second
+    in the population: a candidate test of the rows the model is hopeful about.
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
@@ -48,13 +51,17 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
         raise ValueError("a search without an evaluation budget needs a way to stop")
     chain = Chain(pop[0].copy(), starts=1) if chain is None else replace(chain)
     objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled,
-                          placement=placement)
+                          placement=placement, models=models)
     if evaluations is None or evaluations > 0:
         chain.run(objective, rng, PATIENCE)
     record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}
     if objective.best is None:
         return pop, record, chain
-    best = objective.best
-    rest = pop[~(pop == best).all(axis=(1, 2))]
-    out = np.concatenate([best[None], rest])[: len(pop)]
-    return out, {**record, "best_score": objective.best_score}, chain
+    front = [objective.best]
+    if objective.best_alone is not None:  # second: what the model alone hopes most of
+        front.append(objective.best_alone)
+        record["best_alone_score"] = objective.best_alone_score
+    out = pop
+    for x in reversed(front):
+        out = np.concatenate([x[None], out[~(out == x).all(axis=(1, 2))]])
+    return out[: len(pop)], {**record, "best_score": objective.best_score}, chain

@@ -55,7 +55,12 @@ class Objective:
     With a ``placement`` error each turn cycle is walked from the placement's stencil of start
     poses around ``start_pose`` and the search scores are pooled over the walks
     (:mod:`pac_host.placement`): :meth:`fitness` is then the mean fitness of the walks, and an
-    evaluation is one walk, so a turn cycle costs seven.
+    evaluation is one walk, so a turn cycle costs seven. With ``models`` (M, 32, 3), other
+    tables the robot may be (the corrected model's posterior draws), each turn cycle is also
+    walked on every one and pooled the same way (:class:`~pac_host.coverage.Scorer`): the
+    search then prefers turn cycles whose rows the tests have pinned; the best turn cycle
+    on the model alone among those scored is kept too (``best_alone``), the one the model is
+    most hopeful about, worth a test.
     """
 
     rows: np.ndarray
@@ -66,18 +71,21 @@ class Objective:
     start_pose: Sequence[float] = START_POSE
     cancelled: Callable[[], bool] | None = None
     placement: PlacementError | None = None
+    models: np.ndarray | None = None
     evaluations: int = 0  # walks simulated
     best: np.ndarray | None = None
     best_score: int | None = None  # the best's score (Coverage.score)
     best_search_score: int | None = None
     trace: list = field(default_factory=list)  # (evaluations, seconds, fitness) at each new best
+    best_alone: np.ndarray | None = None  # with models: the best on the model alone
+    best_alone_score: int | None = None
     t0: float = field(default_factory=time.perf_counter)
 
     def __post_init__(self) -> None:
         poses = (self.start_pose if self.placement is None
                  else self.placement.stencil(self.start_pose))
-        self._scorer = Scorer(self.rows, self.budget, self.effects, poses)
-        self.starts = len(self._scorer.starts)
+        self._scorer = Scorer(self.rows, self.budget, self.effects, poses, self.models)
+        self.starts = self._scorer.walks  # walks a turn cycle costs
         self._loop_table = None
 
     def loop_table(self) -> np.ndarray:
@@ -95,11 +103,13 @@ class Objective:
                        tuple(float(v) for v in self.start_pose), _SCORES)).encode())
         if self.placement is not None:
             h.update(repr(("placement", self.placement.to_text())).encode())
+        if self.models is not None and len(self.models):
+            h.update(np.ascontiguousarray(self.models, dtype=np.float64).tobytes())
         return h.hexdigest()[:16]
 
     def fitness(self, search_score: int) -> int | float:
         """The coverage fitness inside one of this objective's search scores (with a
-        placement error, the mean over the stencil's walks)."""
+        placement error or models, the mean over the walks)."""
         total = int(fitness_of_search_score(search_score, self.budget, self.starts))
         return total if self.starts == 1 else total / self.starts
 
@@ -121,6 +131,10 @@ class Objective:
             pop = pop[: left // self.starts]
         keys, scores = self._scorer.both(pop)
         self.evaluations += len(pop) * self.starts
+        if self.models is not None and len(scores):
+            j = int(np.argmax(scores))
+            if self.best_alone_score is None or scores[j] > self.best_alone_score:
+                self.best_alone, self.best_alone_score = pop[j].copy(), int(scores[j])
         if len(keys):
             i = int(np.argmax(keys))
             if self.best_search_score is None or keys[i] > self.best_search_score:
