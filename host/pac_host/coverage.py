@@ -266,6 +266,10 @@ class _Workspace:
 
 _local = threading.local()
 
+# With battery_sag, the compiled kernel's moves tabulated per step (per gait id and, with a
+# transition, per pair of gait ids) may take up to this many bytes; more runs in numpy.
+_TABULATED_BYTES = 256 * 2**20
+
 
 def _workspace(shape: tuple[int, int]) -> _Workspace:
     cache = _local.__dict__.setdefault("cache", {})
@@ -392,9 +396,10 @@ def simulate(
     ``rows`` is one table (32, 3) or M tables (M, 32, 3); ``genes`` is one turn cycle (9, 2) or
     P of them (P, 9, 2). The result's arrays have shape (P,) for one table, (M, P) for M.
     ``kernel``: ``"numpy"`` (the reference), ``"numba"`` (compiled, the same figures value for
-    value; only for scores without kept paths, and with no sequence effect but the built-in
-    ``transition``) or ``"auto"`` (numba where it applies and is installed). ``battery_sag``,
-    whose moves depend on the step, and user-defined effects run in numpy.
+    value; only for scores without kept paths, and with no sequence effects but the built-in
+    ``transition`` and ``battery_sag``) or ``"auto"`` (numba where it applies and is
+    installed). User-defined effects run in numpy, and so does ``battery_sag`` when its moves
+    tabulated per step would take more than 256 MB (many tables and a long budget).
     """
     budget = check_budget(budget)
     rows = np.asarray(rows, dtype=np.float64)
@@ -408,8 +413,10 @@ def simulate(
                   keep_paths)
     compiled = not keep_paths and run.compiled and coverage_jit.AVAILABLE
     if kernel == "numba" and not compiled:
-        raise ValueError("the numba kernel needs numba, no kept paths and no sequence effect "
-                         "but transition (battery_sag and user-defined effects run in numpy)")
+        raise ValueError("the numba kernel needs numba, no kept paths and no sequence effects "
+                         "but transition and battery_sag (user-defined effects run in numpy)")
+    if compiled and kernel == "auto":
+        compiled = run.tabulating_pays(genes)
     if compiled and kernel != "numpy":
         figures = run.score_compiled(genes, n_tables)
         shape = (n_genes,) if rows.ndim == 2 else (n_tables, n_genes)
@@ -515,12 +522,27 @@ class _Runner:
         self.q0 = heading_rotation(start[2])
         self.p0 = start[0] + 1j * start[1]
         self.h0 = start[2]
-        # the compiled kernel runs table effects, a world drift and one built-in transition,
-        # whose blend depends on the gait id and the one before: tabulated per pair of ids
+        # the compiled kernel runs table effects, a world drift, one built-in transition, whose
+        # blend depends on the gait id and the one before (tabulated per pair of ids), and one
+        # built-in battery_sag, whose moves depend on the step too (tabulated per step)
         seq = sequence_effects(effects)
         self.sequence = bool(seq)
-        self.compiled = not seq or (len(seq) == 1 and seq[0].name == "transition")
-        self.alpha = seq[0].params["alpha"] if seq and self.compiled else 0.0
+        names = [e.name for e in seq]
+        self.compiled = (len(set(names)) == len(names)
+                         and set(names) <= {"transition", "battery_sag"})
+        params = {e.name: e.params for e in seq} if self.compiled else {}
+        self.alpha = params.get("transition", {}).get("alpha", 0.0)
+        beta = params.get("battery_sag", {}).get("beta", 0.0)
+        self.factor = None
+        if self.compiled and beta > 0 and budget > 0:
+            # step_moves' factor at each step of a run from power-on (n0 = 0), to the bit, up
+            # to the first step it reaches 0: every later step moves as that one
+            factor = np.maximum(0.0, 1.0 - beta * (np.asarray(0)[..., None] + np.arange(budget)))
+            zero = np.flatnonzero(factor == 0.0)
+            self.factor = factor[: zero[0] + 1] if zero.size else factor
+            n_tables = 1 if rows.ndim == 2 else rows.shape[0]
+            entries = 32 + (32 * 32 if self.alpha > 0 else 0)  # gait ids, pairs of them
+            self.compiled = n_tables * len(self.factor) * entries * 32 <= _TABULATED_BYTES
         if self.compiled:
             self.table = effective_rows(rows, effects)
             table = self.table.reshape(-1, 3)
@@ -528,11 +550,89 @@ class _Runner:
             self.turns = table[:, 2]
             drift = world_drift(effects)
             self.drift = None if drift is None else complex(drift[0], drift[1])
+        if self.compiled and self.factor is not None:
+            # the moves per table, gait id (or slot of a pair of ids) and step, filled in as
+            # turn cycles use them (a search's batches use few of the pairs)
+            shape = (len(self.table.reshape(-1, 32, 3)), 32, len(self.factor))
+            self._rot = self._disp = None  # allocated when first needed
+            self._shape = shape
+            self._filled = np.zeros(32, dtype=bool)
+            self._slots = np.full(32 * 32, -1, dtype=np.int64)
+            self._n_pairs = 0
+            self._lock = threading.Lock()
+            self._blend_rot = self._blend_disp = np.empty((shape[0], 0, shape[2]),
+                                                          dtype=np.complex128)
 
     def score_compiled(self, genes: np.ndarray, n_tables: int) -> np.ndarray:
         """Figures (5, n_tables * P) of turn cycles (P, G, 2) from the compiled kernel."""
-        return coverage_jit.score_paths(genes, n_tables, self.moves, self.q0, self.p0,
-                                        self.drift, self.budget, self.transition_moves(genes))
+        if self.factor is None:
+            return coverage_jit.score_paths(genes, n_tables, self.moves, self.q0, self.p0,
+                                            self.drift, self.budget,
+                                            self.transition_moves(genes))
+        with self._lock:  # a slot once filled keeps its place and moves: the kernel may run
+            self.tabulate_steps(genes)  # while another thread fills in others
+            blend_rot, blend_disp = self._blend_rot, self._blend_disp
+        return coverage_jit.score_tabulated(
+            genes, n_tables, self._rot.ravel(), self._disp.ravel(), len(self.factor), self.q0,
+            self.p0, self.drift, self.budget, self._slots, blend_rot.shape[1],
+            blend_rot.ravel(), blend_disp.ravel())
+
+    def tabulating_pays(self, genes: np.ndarray) -> bool:
+        """Whether the compiled kernel is worth its tabulation for turn cycles (P, G, 2) on
+        this runner's tables: with ``battery_sag`` it converts each new gait id's (and pair's)
+        move at every step, which costs more than numpy walking a handful of turn cycles on many
+        tables (a model GA's tests); a search's scorer keeps its tables and never asks."""
+        if self.factor is None:
+            return True
+        ids = np.unique(genes[..., 0][genes[..., 1] > 0])
+        new = int((~self._filled[ids]).sum())
+        if self.alpha > 0:
+            pairs = coverage_jit.transition_pairs(genes)
+            new += int((self._slots[pairs[:, 0] * 32 + pairs[:, 1]] < 0).sum())
+        return new * len(self.factor) <= 4 * len(genes) * self.budget
+
+    def _per_step(self, body: np.ndarray) -> np.ndarray:
+        """Complex moves (M, k, n_steps, 2) of body moves (..., k, 3) at each tabulated step,
+        scaled as ``effects.step_moves`` scales them (after a transition's blend) and converted
+        as ``integrate_path`` converts them, so the figures stay those of the numpy path value
+        for value."""
+        moves = complex_moves(body[..., None, :] * self.factor[:, None])
+        return moves.reshape(self._shape[0], -1, len(self.factor), 2)
+
+    def tabulate_steps(self, genes: np.ndarray) -> None:
+        """With ``battery_sag``, for the compiled kernel: fill in the moves per step of the gait
+        ids (and, with a transition, of the changes of gait id) turn cycles (P, G, 2) walk."""
+        genes = np.asarray(genes, dtype=np.int64)
+        if self._rot is None:
+            self._rot = np.empty(self._shape, dtype=np.complex128)
+            self._disp = np.empty(self._shape, dtype=np.complex128)
+        ids = np.unique(genes[..., 0][genes[..., 1] > 0])
+        new = ids[~self._filled[ids]]
+        if new.size:
+            moves = self._per_step(self.table[..., new, :])
+            self._disp[:, new], self._rot[:, new] = moves[..., 0], moves[..., 1]
+            self._filled[new] = True
+        if self.alpha <= 0:
+            return
+        pairs = coverage_jit.transition_pairs(genes)
+        pairs = pairs[self._slots[pairs[:, 0] * 32 + pairs[:, 1]] < 0]
+        if not len(pairs):
+            return
+        lo, hi = self._n_pairs, self._n_pairs + len(pairs)
+        if hi > self._blend_rot.shape[1]:  # grow the slots, keeping those filled
+            size = min(32 * 32, max(hi, 2 * self._blend_rot.shape[1], 64))
+            grown = []
+            for old in (self._blend_rot, self._blend_disp):
+                a = np.empty((old.shape[0], size, old.shape[2]), dtype=np.complex128)
+                a[:, :lo] = old[:, :lo]
+                grown.append(a)
+            self._blend_rot, self._blend_disp = grown
+        a = self.alpha
+        prev, cur = self.table[..., pairs[:, 0], :], self.table[..., pairs[:, 1], :]
+        moves = self._per_step((1 - a) * cur + a * prev)
+        self._blend_disp[:, lo:hi], self._blend_rot[:, lo:hi] = moves[..., 0], moves[..., 1]
+        self._slots[pairs[:, 0] * 32 + pairs[:, 1]] = np.arange(lo, hi)
+        self._n_pairs = hi
 
     def transition_moves(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """For the compiled kernel: the changes of gait id (prev, gait) the turn cycles make

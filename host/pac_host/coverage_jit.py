@@ -5,11 +5,12 @@ The same arithmetic as the numpy simulator in :mod:`pac_host.coverage`, operatio
 positions as a running sum, the body-width test on each pose), so both give the same figures
 value for value; the numpy simulator stays the reference the tests compare this kernel with.
 It covers what the search needs: scores of turn cycles on one or many tables whose effects
-depend on the gait id alone (plus a world drift), and the built-in ``transition`` effect, whose
-blended moves depend on the gait id and the one before it: the caller tabulates them per pair of
-gait ids with the same conversion the numpy simulator uses, and the kernel looks them up.
-Kept paths, and other sequence effects (``battery_sag``, whose moves depend on the step, and
-user-defined ones), run in numpy.
+depend on the gait id alone (plus a world drift), the built-in ``transition`` effect, whose
+blended moves depend on the gait id and the one before it, and the built-in ``battery_sag``,
+whose moves depend on the gait id and the step's index in the run. The caller tabulates the
+moves, per gait id or pair of gait ids and (with ``battery_sag``) per step, with the same
+conversion the numpy simulator uses, and the kernel looks them up. Kept paths and user-defined
+sequence effects run in numpy.
 
 Set ``PAC_KERNEL=numpy`` in the environment to run everything in numpy.
 """
@@ -145,14 +146,19 @@ def _transition_pairs(genes: np.ndarray, out: np.ndarray) -> None:
 
 
 def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.ndarray,
-                 q0: complex, p0: complex, drift: complex, budget: int, slots: np.ndarray,
-                 n_slots: int, blend_rot: np.ndarray, blend_disp: np.ndarray) -> np.ndarray:
+                 n_steps: int, q0: complex, p0: complex, drift: complex, budget: int,
+                 slots: np.ndarray, n_slots: int, blend_rot: np.ndarray, blend_disp: np.ndarray
+                 ) -> np.ndarray:
     """Figures (5, n_tables * P) of turn cycles ``genes`` (P, G, 2) on tables whose moves are
-    ``rot`` and ``disp`` (n_tables * 32,): path k runs genes k % P on table k // P.
+    ``rot`` and ``disp`` (n_tables * 32 * n_steps,): path k runs genes k % P on table k // P.
+    Gait id g of table m moves at step t (1..budget) by entry ``(m * 32 + g) * n_steps + i``,
+    i = min(t - 1, n_steps - 1): with ``n_steps`` 1 the move depends on the gait id alone, with
+    more on the step too (battery sag), the last entry standing for every later step.
 
     With ``n_slots`` > 0, a gait cycle whose gait id differs from the one just before it in the
-    path (not the path's first) moves by ``blend_rot`` and ``blend_disp`` (n_tables * n_slots,)
-    instead, at ``slots[prev * 32 + gait]`` of its table: a transition's blended move.
+    path (not the path's first) moves by ``blend_rot`` and ``blend_disp``
+    (n_tables * n_slots * n_steps,) instead, at slot ``slots[prev * 32 + gait]`` of its table
+    (indexed as the moves are): a transition's blended move.
 
     Each path starts where it parts from the path before it on the same table: the gait
     cycles they walk alike are not walked again (a search's batch changes one gene and keeps
@@ -203,13 +209,15 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
                     left = g[j, 1]
                 left -= 1
                 gait = g[j, 0]
+                i = min(t - 1, n_steps - 1)
                 if blend and gait != prev and prev >= 0:
-                    e = blend_base + slots[prev * 32 + gait]
+                    e = (blend_base + slots[prev * 32 + gait]) * n_steps + i
                     r = blend_rot[e]
                     d = blend_disp[e]
                 else:
-                    r = rot[base + gait]
-                    d = disp[base + gait]
+                    e = (base + gait) * n_steps + i
+                    r = rot[e]
+                    d = disp[e]
                 prev = gait
                 dr = drift
             step = d * q
@@ -253,26 +261,57 @@ def score_paths(genes: np.ndarray, n_tables: int, moves: np.ndarray, q0: complex
                 transition: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Figures (5, n_tables * P) of turn cycles (P, G, 2) on tables with complex ``moves``
     (n_tables * 32, 2) as ``kinematics.complex_moves`` gives them; path k runs turn cycle
-    k % P on table k // P.
+    k % P on table k // P. Moves that depend on the step too (``battery_sag``) come as
+    (n_tables * 32, n_steps, 2): the move at steps 1..n_steps, the last one standing for every
+    later step.
 
     ``transition``: (pairs, blended) for the ``transition`` effect: the changes of gait id
     (n, 2) the turn cycles make (at least those of :func:`transition_pairs`) and, for each
     table and pair, the complex move (n_tables * n, 2) of the blend the first gait cycle after
-    that change makes (None: no transition effect)."""
+    that change makes, or (n_tables * n, n_steps, 2) per step as the moves are (None: no
+    transition effect). A pair marked (-1, -1) holds a slot no turn cycle uses."""
+    moves = np.asarray(moves)
+    n_steps = moves.shape[1] if moves.ndim == 3 else 1
+    if moves.shape[0] != n_tables * 32 or moves.shape[-1] != 2:
+        raise ValueError(f"moves {moves.shape}, expected {(n_tables * 32, n_steps, 2)}")
+    slots = np.full(32 * 32, -1, dtype=np.int64)
     if transition is None:
-        slots = np.zeros(0, dtype=np.int64)
         n_slots = 0
-        blended = np.zeros((0, 2), dtype=np.complex128)
+        blended = np.zeros((0, n_steps, 2), dtype=np.complex128)
     else:
         pairs, blended = transition
         n_slots = len(pairs)
-        slots = np.full(32 * 32, -1, dtype=np.int64)
-        slots[pairs[:, 0] * 32 + pairs[:, 1]] = np.arange(n_slots)
-        if blended.shape != (n_tables * n_slots, 2):
-            raise ValueError(f"blended moves {blended.shape}, expected {(n_tables * n_slots, 2)}")
+        used = pairs[:, 0] >= 0
+        slots[pairs[used, 0] * 32 + pairs[used, 1]] = np.flatnonzero(used)
+        if blended.ndim == 2:
+            blended = blended[:, None, :]
+        if blended.shape != (n_tables * n_slots, n_steps, 2):
+            raise ValueError(f"blended moves {blended.shape}, "
+                             f"expected {(n_tables * n_slots, n_steps, 2)}")
+    moves = moves.reshape(n_tables * 32, n_steps, 2)
     return _compile()(np.ascontiguousarray(genes, dtype=np.int64), n_tables,
-                        np.ascontiguousarray(moves[:, 1]), np.ascontiguousarray(moves[:, 0]),
+                        np.ascontiguousarray(moves[..., 1]).ravel(),
+                        np.ascontiguousarray(moves[..., 0]).ravel(), n_steps,
                         complex(q0), complex(p0), 0j if drift is None else complex(drift),
                         int(budget), slots, n_slots,
-                        np.ascontiguousarray(blended[:, 1]),
-                        np.ascontiguousarray(blended[:, 0]))
+                        np.ascontiguousarray(blended[..., 1]).ravel(),
+                        np.ascontiguousarray(blended[..., 0]).ravel())
+
+
+def score_tabulated(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.ndarray,
+                    n_steps: int, q0: complex, p0: complex, drift: complex | None, budget: int,
+                    slots: np.ndarray, n_slots: int, blend_rot: np.ndarray,
+                    blend_disp: np.ndarray) -> np.ndarray:
+    """:func:`score_paths` on moves the caller keeps tabulated as the kernel reads them (flat
+    contiguous complex arrays, see ``_score_paths``), so a search's many small batches do not
+    copy them: the moves per step of ``battery_sag``."""
+    n = n_tables * 32 * n_steps
+    if rot.shape != (n,) or disp.shape != (n,):
+        raise ValueError(f"moves {rot.shape}, {disp.shape}, expected {(n,)}")
+    if n_slots and (blend_rot.shape[0] < n_tables * n_slots * n_steps
+                    or blend_disp.shape != blend_rot.shape or slots.shape != (32 * 32,)):
+        raise ValueError("blended moves do not match their slots")
+    return _compile()(np.ascontiguousarray(genes, dtype=np.int64), n_tables, rot, disp,
+                        n_steps, complex(q0), complex(p0),
+                        0j if drift is None else complex(drift), int(budget), slots, n_slots,
+                        blend_rot, blend_disp)

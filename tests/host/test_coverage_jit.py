@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pac_host import cga, coverage_jit
-from pac_host.coverage import START_POSE, _Runner, expand, simulate
+from pac_host.coverage import START_POSE, _Runner, expand, search_score, simulate
 from pac_host.model import measured_table, parse_effect, shifted_table, step_moves
 from pac_host.model.effects import ParamSpec, register_effect
 from pac_host.model.effects_module import forget_user_effects
@@ -55,8 +55,8 @@ def test_kernel_equals_numpy_on_many_tables_and_with_effects():
 
 def test_auto_uses_numpy_where_the_kernel_does_not_apply():
     pop = _population(np.random.default_rng(2), 30)
-    for seq in (["battery_sag:beta=0.002"], ["transition:alpha=0.3", "battery_sag:beta=0.002"],
-                ["transition:alpha=0.3", "transition:alpha=0.5"]):
+    for seq in (["transition:alpha=0.3", "transition:alpha=0.5"],
+                ["battery_sag:beta=0.002", "battery_sag:beta=0.001"]):
         with pytest.raises(ValueError):
             simulate(measured_table().rows, pop, 100, [parse_effect(e) for e in seq],
                      kernel="numba")
@@ -150,7 +150,7 @@ def test_transition_changes_the_figures_and_auto_runs_it_in_the_kernel(monkeypat
     _same(simulate(rows, pop, 200, effects), simulate(rows, pop, 200, effects, kernel="numpy"))
     assert calls == [1]
     simulate(rows, pop, 200, [*effects, parse_effect("battery_sag:beta=0.001")])
-    assert calls == [1]  # battery_sag runs in numpy
+    assert calls == [1]  # with battery_sag the kernel takes moves per step: score_tabulated
 
 
 def test_transition_table_holds_every_change_and_the_numpy_paths_moves_bit_for_bit():
@@ -197,6 +197,131 @@ def test_kernel_equals_numpy_with_transition_on_batches_that_share_their_first_g
                   simulate(models, batch[::7], budget, effects, kernel="numpy"))
 
 
+SAG_EFFECTS = [
+    [],
+    ["transition:alpha=0.3"],
+    ["floor_slope:s=0.8,theta=200"],
+    # listed out of order: the effects run in the canonical order whatever order they come in
+    ["floor_slope:s=-0.6,theta=40", "transition:alpha=0.3", "turn_shift:k=2",
+     "yaw_bias:delta=-0.7"],
+]
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.0003, 0.002, 0.006, 0.1])
+@pytest.mark.parametrize("others", range(len(SAG_EFFECTS)))
+def test_kernel_equals_numpy_with_battery_sag(beta, others):
+    """Battery sag scales each gait cycle's move by 1 - beta i at step i of the run, down to
+    nothing (beta 0.006 reaches it within 200 steps, 0.1 within 10): the kernel looks the move
+    up per step, alone, after a transition's blend and with a world drift; on one and on many
+    tables, with short loops that repeat many times."""
+    rng = np.random.default_rng(int(beta * 10**4) + 100 * others)
+    effects = [parse_effect(f"battery_sag:beta={beta}")]
+    effects += [parse_effect(e) for e in SAG_EFFECTS[others]]
+    if others % 2:
+        effects.reverse()
+    pop = _transition_population(rng, 1500)
+    pop[1000:1300, :, 1] //= 3
+    for budget in (1, 2, 37, 200):
+        _same(simulate(shifted_table().rows, pop, budget, effects, kernel="numba"),
+              simulate(shifted_table().rows, pop, budget, effects, kernel="numpy"))
+    models = measured_table().rows + rng.normal(0, 0.6, (6, 32, 3))
+    _same(simulate(models, pop[:300], 200, effects, kernel="numba"),
+          simulate(models, pop[:300], 200, effects, kernel="numpy"))
+    _same(simulate(models, pop[:3], 200, effects, kernel="numba"),
+          simulate(models, pop[:3], 200, effects, kernel="numpy"))
+
+
+@pytest.mark.parametrize("effects", [("battery_sag:beta=0.002",),
+                                     ("battery_sag:beta=0.006", "transition:alpha=0.3"),
+                                     ("floor_slope:s=0.5,theta=60", "battery_sag:beta=0.001",
+                                      "transition:alpha=0.6")])
+def test_a_scorer_with_battery_sag_runs_the_kernel_batch_after_batch(effects, monkeypatch):
+    """A scorer keeps the moves it tabulated per step and fills in those of new gait ids and
+    changes of gait id as batches bring them: each batch's scores are the numpy simulator's,
+    value for value, from the kernel, over random turn cycles, short loops and a search's
+    single-gene neighbourhoods (which share their first steps)."""
+    from pac_host.coverage import Scorer
+    from pac_host.search.neighbours import neighbours
+
+    effs = tuple(parse_effect(e) for e in effects)
+    rows, rng = shifted_table().rows, np.random.default_rng(12)
+    calls = []
+    score_tabulated = coverage_jit.score_tabulated
+    monkeypatch.setattr(coverage_jit, "score_tabulated",
+                        lambda *a, **k: calls.append(1) or score_tabulated(*a, **k))
+    scorer = Scorer(rows, 200, effs, (60.0, 20.0, 80.0))
+    pop = _transition_population(rng, 200)
+    batches = [pop[:1], pop[1:40], pop[40:200] // np.array([1, 3])]
+    batches += [np.concatenate([x[None], neighbours(x, 200)]) for x in pop[[0, 20, 64, 120]]]
+    for batch in batches:
+        want = simulate(rows, batch, 200, effs, (60.0, 20.0, 80.0), kernel="numpy")
+        got = scorer.both(batch)
+        assert (got[1] == want.score()).all()
+        np.testing.assert_array_equal(got[0], search_score(want.fitness, want.reached_at,
+                                                           want.repeat_visits, 200))
+    assert len(calls) == len(batches)
+
+
+def test_battery_sag_is_compiled_and_its_step_moves_are_the_numpy_paths_bit_for_bit():
+    """The runner compiles battery_sag (alone, after a transition, with a drift), tabulates
+    the step factor up to where it reaches 0, and each tabulated move is the one the numpy
+    path converts from ``step_moves``, to the last bit; too large a table runs in numpy."""
+    rng = np.random.default_rng(13)
+    start = np.array(START_POSE)
+    rows = measured_table().rows + rng.normal(0, 0.6, (3, 32, 3))
+    for extra in ([], ["transition:alpha=0.3"], ["floor_slope:s=0.8,theta=200"],
+                  ["transition:alpha=0.3", "floor_slope:s=0.8,theta=200", "turn_shift:k=2"]):
+        effects = tuple(parse_effect(e) for e in ["battery_sag:beta=0.006", *extra])
+        for table in (rows, rows[0]):
+            run = _Runner(table, 200, effects, start, False)
+            assert run.compiled
+            assert len(run.factor) == 168  # 1 - 0.006 i reaches 0 at step 167, of 200
+            pop = _transition_population(rng, 120)
+            run.tabulate_steps(pop)
+            ids = np.unique(pop[..., 0][pop[..., 1] > 0])
+            walks = np.broadcast_to(ids[:, None], table.shape[:-2] + (len(ids), 200))
+            body, _ = step_moves(table, walks, effects)  # each id walked throughout
+            want = complex_moves(body[..., :168, :]).reshape(-1, len(ids), 168, 2)
+            np.testing.assert_array_equal(run._disp[:, ids], want[..., 0])
+            np.testing.assert_array_equal(run._rot[:, ids], want[..., 1])
+            assert (body[..., 167:, :] == body[..., 167:168, :]).all()  # the last for later
+            if extra and extra[0].startswith("transition"):
+                pairs = coverage_jit.transition_pairs(pop)
+                walks = np.broadcast_to(pairs[:, None, :], (len(pairs), 100, 2)).reshape(
+                    len(pairs), 200)  # prev, gait, prev, gait ...: a change at every step
+                walks = np.broadcast_to(walks, table.shape[:-2] + walks.shape)
+                body, _ = step_moves(table, walks, effects)
+                slot = run._slots[pairs[:, 0] * 32 + pairs[:, 1]]
+                want = complex_moves(body[..., 1:168:2, :]).reshape(-1, len(pairs), 84, 2)
+                np.testing.assert_array_equal(run._blend_disp[:, slot, 1:168:2], want[..., 0])
+                np.testing.assert_array_equal(run._blend_rot[:, slot, 1:168:2], want[..., 1])
+    assert _Runner(rows[0], 200, (parse_effect("battery_sag:beta=0.0001"),), start,
+                   False).compiled
+    many = measured_table().rows + np.zeros((200, 32, 3))
+    effects = (parse_effect("battery_sag:beta=0.0001"), parse_effect("transition:alpha=0.3"))
+    assert not _Runner(many, 200, effects, start, False).compiled  # 200 x 200 x 1056 entries
+    assert _Runner(many[:30], 200, effects, start, False).compiled
+
+
+def test_battery_sag_changes_the_figures_and_auto_runs_it_in_the_kernel(monkeypatch):
+    """The sag is not a no-op the comparison could pass by, and ``kernel="auto"`` (and a
+    scorer) take the compiled path for it."""
+    pop = _transition_population(np.random.default_rng(14), 2000)
+    rows = shifted_table().rows
+    plain = simulate(rows, pop, 200, kernel="numpy").score()
+    for beta in (0.002, 0.006):
+        sag = simulate(rows, pop, 200, [parse_effect(f"battery_sag:beta={beta}")],
+                       kernel="numpy").score()
+        assert (sag != plain).mean() > 0.2
+    calls = []
+    score_tabulated = coverage_jit.score_tabulated
+    monkeypatch.setattr(coverage_jit, "score_tabulated",
+                        lambda *a, **k: calls.append(1) or score_tabulated(*a, **k))
+    effects = [parse_effect("battery_sag:beta=0.002"), parse_effect("yaw_bias:delta=0.5")]
+    _same(simulate(rows, pop, 200, effects), simulate(rows, pop, 200, effects, kernel="numpy"))
+    assert calls == [1]
+
+
 @pytest.fixture
 def user_effect():
     register_effect("halve", [ParamSpec("f", 0.0, 1.0, neutral=1.0)],
@@ -236,3 +361,15 @@ def test_a_scorer_gives_simulates_scores_batch_after_batch(effects):
         pop[: size // 2, :, 1] //= 5
         want = simulate(rows, pop, 150, effs, (60.0, 20.0, 80.0), kernel="numpy").score()
         assert (scorer(pop) == want).all()
+
+
+def test_auto_walks_a_few_turn_cycles_on_many_tables_with_battery_sag_in_numpy(monkeypatch):
+    """Tabulating a sag's moves per step costs more than numpy walking a model GA's three
+    tests on many tables: ``kernel="auto"`` leaves those to numpy, whose figures they are."""
+    rng = np.random.default_rng(15)
+    models = measured_table().rows + rng.normal(0, 0.5, (64, 32, 3))
+    pop = _population(rng, 40)[16:19]
+    effects = [parse_effect("battery_sag:beta=0.002")]
+    monkeypatch.setattr(coverage_jit, "score_tabulated", None)  # the kernel is not called
+    _same(simulate(models, pop, 200, effects), simulate(models, pop, 200, effects,
+                                                         kernel="numpy"))
