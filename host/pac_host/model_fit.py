@@ -121,9 +121,7 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
     rows, not held-out runs (the three tests of a punctuation share their rows): the runs are
     cut into stretches of one repeated gait cycle and the stretches of about 30% of the rows
     are held out. Then, so that wrong rows do not pass for a sequence or world effect, those
-    effects are selected on whole runs of the table whose used rows are fitted freely, each
-    effect fitted and judged beside an offset per used row: the fitted rows carry the steps'
-    noise, the same at every step of a row, which would otherwise pass for a drift or a sag.
+    effects are selected on whole runs of the table whose used rows are fitted freely.
     """
     runs = list(runs)[-STRUCTURE_RUNS:]
     if len(runs) < MIN_RUNS_FOR_EFFECTS:
@@ -140,7 +138,7 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
     table_fx, seq_fx = _split_effects(tuple(base.effects) + found)
     fit, hold = split_runs(runs, HOLDOUT_FRACTION, rng)
     free = _rows_only(GaitTable(effective_rows(base.rows, table_fx), (), base.name), fit, seq_fx)
-    more = select_effects(free, fit, hold, seq_lib, rows_fitted=True)
+    more = select_effects(free, fit, hold, seq_lib)
     batch = batch_of(runs)
     keep = [e for e in more if _moves_anything(free, batch, e)]
     return found + tuple(keep)

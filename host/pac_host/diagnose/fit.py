@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -42,58 +42,24 @@ TOP_INTEGERS = 3
 
 @dataclass(frozen=True)
 class Problem:
-    """What fitting needs: the model's rows and own effects, the runs and their whitener.
-
-    ``nuisance``: an orthonormal basis (n, k) of whitened directions taken out of every
-    residual (:func:`with_row_offsets`: an offset per row the runs use), so an effect is fitted
-    and judged as if fitted jointly with them (Frisch-Waugh-Lovell)."""
+    """What fitting needs: the model's rows and own effects, the runs and their whitener."""
 
     rows: np.ndarray
     base_effects: tuple[Effect, ...]
     batch: Batch
     whitener: Whitener
-    nuisance: np.ndarray | None = None
-
-    def _project(self, w: np.ndarray) -> np.ndarray:
-        return w if self.nuisance is None else w - self.nuisance @ (self.nuisance.T @ w)
 
     def whitened(self, effects: Sequence[Effect]) -> np.ndarray:
         res = step_residuals(self.rows, self.batch, tuple(self.base_effects) + tuple(effects))
-        return self._project(self.whitener.whiten(res).ravel())
+        return self.whitener.whiten(res).ravel()
 
     def ssr_per_run(self, effects: Sequence[Effect]) -> np.ndarray:
         res = step_residuals(self.rows, self.batch, tuple(self.base_effects) + tuple(effects))
-        if self.nuisance is None:
-            return self.whitener.ssr_per_run(res)
-        w = self.whitener.whiten(res)
-        w = self._project(w.ravel()).reshape(w.shape)
-        return np.einsum("...i,...i->...", w, w)
+        return self.whitener.ssr_per_run(res)
 
     @property
     def n_obs(self) -> int:
-        k = 0 if self.nuisance is None else self.nuisance.shape[1]
-        return 3 * self.batch.n_steps - k
-
-
-def with_row_offsets(prob: Problem) -> Problem:
-    """``prob`` with an offset per row and component of the steps its runs take as nuisance:
-    for judging sequence and world effects on rows that were themselves fitted to noisy steps,
-    whose estimation error (the same at every step of a row) would otherwise pass for a drift
-    or a sag."""
-    b = prob.batch
-    cols = []
-    for g in np.unique(b.ids[b.mask]):
-        sel = (b.ids == g) & b.mask
-        for j in range(3):
-            x = np.zeros(b.mask.shape + (3,))
-            x[..., j] = sel
-            cols.append(x)
-    if not cols:
-        return prob
-    xw = prob.whitener.whiten(np.stack(cols)).reshape(len(cols), -1).T
-    q, r = np.linalg.qr(xw)
-    keep = np.abs(np.diag(r)) > 1e-10 * max(float(np.abs(np.diag(r)).max()), 1e-300)
-    return replace(prob, nuisance=np.ascontiguousarray(q[:, keep]))
+        return 3 * self.batch.n_steps
 
 
 # --- parameterization: internal continuous vector <-> Effect --------------------------------

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pac_host.diagnose import stats
-from pac_host.diagnose.fit import Problem, with_row_offsets
+from pac_host.diagnose.fit import Problem
 from pac_host.diagnose.likelihood import whitener
 from pac_host.diagnose.noise import NoiseFloor, estimate_noise
 from pac_host.diagnose.propose import family_tests, propose
@@ -156,17 +156,12 @@ def _problems(table: GaitTable, fit_b: Batch, hold_b: Batch
 
 
 def select_effects(table: GaitTable, fit_runs: Sequence[Run], hold_runs: Sequence[Run],
-                   library: Sequence[str] | None = None, rows_fitted: bool = False
-                   ) -> tuple[Effect, ...]:
+                   library: Sequence[str] | None = None) -> tuple[Effect, ...]:
     """The effects :func:`diagnose` would select, without its report: the forward selection
     on the fitting runs judged on the held-out ones, nothing else (no bootstrap intervals,
     shape tests or proposals). For callers that only act on the selection, e.g. the model
-    correction of every punctuation, where the whole report took seconds. ``rows_fitted``:
-    the table's rows were fitted to these noisy steps, so each effect is fitted and judged
-    with an offset per used row beside it (:func:`~pac_host.diagnose.fit.with_row_offsets`)."""
+    correction of every punctuation, where the whole report took seconds."""
     _, fit_p, hold_p = _problems(table, batch_of(fit_runs), batch_of(hold_runs))
-    if rows_fitted:
-        fit_p, hold_p = with_row_offsets(fit_p), with_row_offsets(hold_p)
     return tuple(forward_select(fit_p, hold_p, library).selected)
 
 
