@@ -29,6 +29,7 @@ from pac_host.limits import SIM_BUDGET
 from pac_host.model.effects import (
     Effect,
     effective_rows,
+    sag_factor,
     sequence_effects,
     step_moves,
     world_drift,
@@ -535,9 +536,9 @@ class _Runner:
         beta = params.get("battery_sag", {}).get("beta", 0.0)
         self.factor = None
         if self.compiled and beta > 0 and budget > 0:
-            # step_moves' factor at each step of a run from power-on (n0 = 0), to the bit, up
-            # to the first step it reaches 0: every later step moves as that one
-            factor = np.maximum(0.0, 1.0 - beta * (np.asarray(0)[..., None] + np.arange(budget)))
+            # step_moves' factor at each step of a run from power-on (n0 = 0), up to the first
+            # step it reaches 0: every later step moves as that one
+            factor = sag_factor(beta, 0, budget)
             zero = np.flatnonzero(factor == 0.0)
             self.factor = factor[: zero[0] + 1] if zero.size else factor
             n_tables = 1 if rows.ndim == 2 else rows.shape[0]
@@ -584,12 +585,19 @@ class _Runner:
         tables (a model GA's tests); a search's scorer keeps its tables and never asks."""
         if self.factor is None:
             return True
+        ids, pairs = self._untabulated(genes)
+        return (len(ids) + len(pairs)) * len(self.factor) <= 4 * len(genes) * self.budget
+
+    def _untabulated(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The gait ids (k,) and, with a transition, the changes of gait id (n, 2) that turn
+        cycles (P, G, 2) walk and whose moves per step are not tabulated yet."""
+        genes = np.asarray(genes, dtype=np.int64)
         ids = np.unique(genes[..., 0][genes[..., 1] > 0])
-        new = int((~self._filled[ids]).sum())
-        if self.alpha > 0:
-            pairs = coverage_jit.transition_pairs(genes)
-            new += int((self._slots[pairs[:, 0] * 32 + pairs[:, 1]] < 0).sum())
-        return new * len(self.factor) <= 4 * len(genes) * self.budget
+        ids = ids[~self._filled[ids]]
+        if self.alpha <= 0:
+            return ids, np.zeros((0, 2), dtype=np.int64)
+        pairs = coverage_jit.transition_pairs(genes)
+        return ids, pairs[self._slots[pairs[:, 0] * 32 + pairs[:, 1]] < 0]
 
     def _per_step(self, body: np.ndarray) -> np.ndarray:
         """Complex moves (M, k, n_steps, 2) of body moves (..., k, 3) at each tabulated step,
@@ -602,20 +610,14 @@ class _Runner:
     def tabulate_steps(self, genes: np.ndarray) -> None:
         """With ``battery_sag``, for the compiled kernel: fill in the moves per step of the gait
         ids (and, with a transition, of the changes of gait id) turn cycles (P, G, 2) walk."""
-        genes = np.asarray(genes, dtype=np.int64)
         if self._rot is None:
             self._rot = np.empty(self._shape, dtype=np.complex128)
             self._disp = np.empty(self._shape, dtype=np.complex128)
-        ids = np.unique(genes[..., 0][genes[..., 1] > 0])
-        new = ids[~self._filled[ids]]
+        new, pairs = self._untabulated(genes)
         if new.size:
             moves = self._per_step(self.table[..., new, :])
             self._disp[:, new], self._rot[:, new] = moves[..., 0], moves[..., 1]
             self._filled[new] = True
-        if self.alpha <= 0:
-            return
-        pairs = coverage_jit.transition_pairs(genes)
-        pairs = pairs[self._slots[pairs[:, 0] * 32 + pairs[:, 1]] < 0]
         if not len(pairs):
             return
         lo, hi = self._n_pairs, self._n_pairs + len(pairs)

@@ -261,50 +261,37 @@ def score_paths(genes: np.ndarray, n_tables: int, moves: np.ndarray, q0: complex
                 transition: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Figures (5, n_tables * P) of turn cycles (P, G, 2) on tables with complex ``moves``
     (n_tables * 32, 2) as ``kinematics.complex_moves`` gives them; path k runs turn cycle
-    k % P on table k // P. Moves that depend on the step too (``battery_sag``) come as
-    (n_tables * 32, n_steps, 2): the move at steps 1..n_steps, the last one standing for every
-    later step.
+    k % P on table k // P.
 
     ``transition``: (pairs, blended) for the ``transition`` effect: the changes of gait id
     (n, 2) the turn cycles make (at least those of :func:`transition_pairs`) and, for each
     table and pair, the complex move (n_tables * n, 2) of the blend the first gait cycle after
-    that change makes, or (n_tables * n, n_steps, 2) per step as the moves are (None: no
-    transition effect). A pair marked (-1, -1) holds a slot no turn cycle uses."""
-    moves = np.asarray(moves)
-    n_steps = moves.shape[1] if moves.ndim == 3 else 1
-    if moves.shape[0] != n_tables * 32 or moves.shape[-1] != 2:
-        raise ValueError(f"moves {moves.shape}, expected {(n_tables * 32, n_steps, 2)}")
-    slots = np.full(32 * 32, -1, dtype=np.int64)
+    that change makes (None: no transition effect)."""
     if transition is None:
+        slots = np.zeros(0, dtype=np.int64)
         n_slots = 0
-        blended = np.zeros((0, n_steps, 2), dtype=np.complex128)
+        blended = np.zeros((0, 2), dtype=np.complex128)
     else:
         pairs, blended = transition
         n_slots = len(pairs)
-        used = pairs[:, 0] >= 0
-        slots[pairs[used, 0] * 32 + pairs[used, 1]] = np.flatnonzero(used)
-        if blended.ndim == 2:
-            blended = blended[:, None, :]
-        if blended.shape != (n_tables * n_slots, n_steps, 2):
-            raise ValueError(f"blended moves {blended.shape}, "
-                             f"expected {(n_tables * n_slots, n_steps, 2)}")
-    moves = moves.reshape(n_tables * 32, n_steps, 2)
-    return _compile()(np.ascontiguousarray(genes, dtype=np.int64), n_tables,
-                        np.ascontiguousarray(moves[..., 1]).ravel(),
-                        np.ascontiguousarray(moves[..., 0]).ravel(), n_steps,
-                        complex(q0), complex(p0), 0j if drift is None else complex(drift),
-                        int(budget), slots, n_slots,
-                        np.ascontiguousarray(blended[..., 1]).ravel(),
-                        np.ascontiguousarray(blended[..., 0]).ravel())
+        slots = np.full(32 * 32, -1, dtype=np.int64)
+        slots[pairs[:, 0] * 32 + pairs[:, 1]] = np.arange(n_slots)
+        if blended.shape != (n_tables * n_slots, 2):
+            raise ValueError(f"blended moves {blended.shape}, expected {(n_tables * n_slots, 2)}")
+    return score_tabulated(genes, n_tables, np.ascontiguousarray(moves[:, 1]),
+                           np.ascontiguousarray(moves[:, 0]), 1, q0, p0, drift, budget, slots,
+                           n_slots, np.ascontiguousarray(blended[:, 1]),
+                           np.ascontiguousarray(blended[:, 0]))
 
 
 def score_tabulated(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.ndarray,
                     n_steps: int, q0: complex, p0: complex, drift: complex | None, budget: int,
                     slots: np.ndarray, n_slots: int, blend_rot: np.ndarray,
                     blend_disp: np.ndarray) -> np.ndarray:
-    """:func:`score_paths` on moves the caller keeps tabulated as the kernel reads them (flat
-    contiguous complex arrays, see ``_score_paths``), so a search's many small batches do not
-    copy them: the moves per step of ``battery_sag``."""
+    """:func:`score_paths` on moves tabulated as the kernel reads them (flat contiguous complex
+    arrays, per step with ``n_steps`` > 1: see ``_score_paths``), which the caller may keep,
+    so a search's many small batches do not copy them: the moves per step of
+    ``battery_sag``."""
     n = n_tables * 32 * n_steps
     if rot.shape != (n,) or disp.shape != (n,):
         raise ValueError(f"moves {rot.shape}, {disp.shape}, expected {(n,)}")

@@ -236,6 +236,12 @@ def world_drift(effects: Iterable[Effect]) -> np.ndarray | None:
     return None
 
 
+def sag_factor(beta: float, n0: int | np.ndarray, n: int) -> np.ndarray:
+    """``battery_sag``'s scale of each of a run's ``n`` moves (..., n): 1 less ``beta`` per gait
+    cycle since power-on (``n0`` before the run), never below 0."""
+    return np.maximum(0.0, 1.0 - beta * (np.asarray(n0)[..., None] + np.arange(n)))
+
+
 def step_moves(
     rows: np.ndarray,
     gait_ids: np.ndarray,
@@ -269,9 +275,7 @@ def step_moves(
             a = p["alpha"]
             body = np.where(changed[..., None], (1 - a) * body + a * prev, body)
         elif e.name == "battery_sag" and p["beta"] > 0:
-            i = np.arange(gait_ids.shape[-1])
-            factor = np.maximum(0.0, 1.0 - p["beta"] * (np.asarray(n0)[..., None] + i))
-            body = body * factor[..., None]
+            body = body * sag_factor(p["beta"], n0, gait_ids.shape[-1])[..., None]
     user = [e for e in effects if EFFECT_SPECS[e.name].apply is not None]
     if user:
         ctx = _context(gait_ids, n0, prev_gait, rng)
