@@ -121,9 +121,14 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
     rows, not held-out runs (the three tests of a punctuation share their rows): the runs are
     cut into stretches of one repeated gait cycle and the stretches of about 30% of the rows
     are held out. Then, so that wrong rows do not pass for a sequence or world effect, those
-    effects are selected on whole runs of the table whose used rows are fitted freely.
+    effects are selected on whole runs of the table whose used rows are fitted beside each
+    effect, their estimation error counted in the held-out runs' noise
+    (:mod:`pac_host.diagnose.fitted_rows`). Every run's start pose is taken as unknown (its
+    first step is left out): a robot placed by hand starts at a nominal pose, or one read by
+    another instrument than the steps' poses, and that one error passed for a drift or a sag.
     """
-    runs = list(runs)[-STRUCTURE_RUNS:]
+    runs = [_free_start(r) for r in list(runs)[-STRUCTURE_RUNS:]]
+    runs = [r for r in runs if r.n > 0]
     if len(runs) < MIN_RUNS_FOR_EFFECTS:
         return ()
     have = {e.name for e in base.effects}
@@ -138,10 +143,19 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
     table_fx, seq_fx = _split_effects(tuple(base.effects) + found)
     fit, hold = split_runs(runs, HOLDOUT_FRACTION, rng)
     free = _rows_only(GaitTable(effective_rows(base.rows, table_fx), (), base.name), fit, seq_fx)
-    more = select_effects(free, fit, hold, seq_lib)
+    more = select_effects(free, fit, hold, seq_lib, rows_fitted=True)
     batch = batch_of(runs)
     keep = [e for e in more if _moves_anything(free, batch, e)]
     return found + tuple(keep)
+
+
+def _free_start(run: Run) -> Run:
+    """``run`` from its first observed pose on: its start pose and first step left out."""
+    if run.n < 2:
+        return Run(run.run_id, run.start_pose, run.gait_cycles[:0], run.poses[:0],
+                   run.cycles_since_power_on)
+    return Run(run.run_id, run.poses[0], run.gait_cycles[1:], run.poses[1:],
+               run.cycles_since_power_on + 1)
 
 
 def _moves_anything(table: GaitTable, batch, effect: Effect) -> bool:

@@ -23,7 +23,7 @@ parameters.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,24 +42,44 @@ TOP_INTEGERS = 3
 
 @dataclass(frozen=True)
 class Problem:
-    """What fitting needs: the model's rows and own effects, the runs and their whitener."""
+    """What fitting needs: the model's rows and own effects, the runs and their whitener.
+
+    Two optional parts serve rows that were themselves fitted to noisy steps
+    (:mod:`.fitted_rows`): ``rows_for`` gives the rows that go with the effects being tried
+    (rows re-fitted beside them), and ``correlated`` = (U, f), U (n, k) orthonormal, maps a
+    whitened residual w to ``w - U (f * U^T w)``: f = 1 takes a direction out (a parameter
+    fitted beside the effects), 0 < f < 1 whitens noise correlated along it. ``dof_taken``:
+    the observations the directions with f = 1 use up."""
 
     rows: np.ndarray
     base_effects: tuple[Effect, ...]
     batch: Batch
     whitener: Whitener
+    rows_for: Callable[[tuple[Effect, ...]], np.ndarray] | None = None
+    correlated: tuple[np.ndarray, np.ndarray] | None = None
+    dof_taken: int = 0
+
+    def _whitened_runs(self, effects: Sequence[Effect]) -> np.ndarray:
+        effects = tuple(effects)
+        rows = self.rows if self.rows_for is None else self.rows_for(effects)
+        res = step_residuals(rows, self.batch, tuple(self.base_effects) + effects)
+        w = self.whitener.whiten(res)
+        if self.correlated is None:
+            return w
+        u, f = self.correlated
+        flat = w.ravel()
+        return (flat - u @ (f * (u.T @ flat))).reshape(w.shape)
 
     def whitened(self, effects: Sequence[Effect]) -> np.ndarray:
-        res = step_residuals(self.rows, self.batch, tuple(self.base_effects) + tuple(effects))
-        return self.whitener.whiten(res).ravel()
+        return self._whitened_runs(effects).ravel()
 
     def ssr_per_run(self, effects: Sequence[Effect]) -> np.ndarray:
-        res = step_residuals(self.rows, self.batch, tuple(self.base_effects) + tuple(effects))
-        return self.whitener.ssr_per_run(res)
+        w = self._whitened_runs(effects)
+        return np.einsum("...i,...i->...", w, w)
 
     @property
     def n_obs(self) -> int:
-        return 3 * self.batch.n_steps
+        return 3 * self.batch.n_steps - self.dof_taken
 
 
 # --- parameterization: internal continuous vector <-> Effect --------------------------------

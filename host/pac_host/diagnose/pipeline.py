@@ -29,6 +29,7 @@ import numpy as np
 
 from pac_host.diagnose import stats
 from pac_host.diagnose.fit import Problem
+from pac_host.diagnose.fitted_rows import fitted_rows_problems
 from pac_host.diagnose.likelihood import whitener
 from pac_host.diagnose.noise import NoiseFloor, estimate_noise
 from pac_host.diagnose.propose import family_tests, propose
@@ -156,12 +157,19 @@ def _problems(table: GaitTable, fit_b: Batch, hold_b: Batch
 
 
 def select_effects(table: GaitTable, fit_runs: Sequence[Run], hold_runs: Sequence[Run],
-                   library: Sequence[str] | None = None) -> tuple[Effect, ...]:
+                   library: Sequence[str] | None = None, rows_fitted: bool = False
+                   ) -> tuple[Effect, ...]:
     """The effects :func:`diagnose` would select, without its report: the forward selection
     on the fitting runs judged on the held-out ones, nothing else (no bootstrap intervals,
     shape tests or proposals). For callers that only act on the selection, e.g. the model
-    correction of every punctuation, where the whole report took seconds."""
-    _, fit_p, hold_p = _problems(table, batch_of(fit_runs), batch_of(hold_runs))
+    correction of every punctuation, where the whole report took seconds. ``rows_fitted``:
+    the rows the fitting runs use were fitted to their steps, so they are fitted beside each
+    effect and their estimation error is counted in the held-out runs' noise
+    (:mod:`~pac_host.diagnose.fitted_rows`)."""
+    fit_b, hold_b = batch_of(fit_runs), batch_of(hold_runs)
+    noise, fit_p, hold_p = _problems(table, fit_b, hold_b)
+    if rows_fitted:
+        fit_p, hold_p = fitted_rows_problems(table, fit_b, hold_b, noise)
     return tuple(forward_select(fit_p, hold_p, library).selected)
 
 
