@@ -84,6 +84,8 @@ def fitted_rows_problems(table: GaitTable, fit_b: Batch, hold_b: Batch, noise: N
                                                                       dtype=np.int64)
 
     def refit(rows: np.ndarray, effects: tuple[Effect, ...]) -> np.ndarray:
+        # one Gauss-Newton step on the rows: exact where the tried effects leave the rows'
+        # columns as they are (drifts, offsets), close for a transition or sag on top
         w = fit_w.whiten(step_residuals(rows, fit_b, base + effects)).ravel()
         out = rows.copy()
         out[gi, ci] += gls @ w
@@ -110,5 +112,5 @@ def fitted_rows_problems(table: GaitTable, fit_b: Batch, hold_b: Batch, noise: N
         u, s = v, np.zeros(0)
     f = 1.0 - 1.0 / np.sqrt(1.0 + s**2)
     hold_p = Problem(rows0, base, hold_b, hold_w, rows_for=rows_for, correlated=(u, f),
-                     dof_taken=int(np.sum(s > np.sqrt(FREE_SCALE))))
+                     dof_taken=min(len(free), len(s)))
     return fit_p, hold_p
