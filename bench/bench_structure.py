@@ -12,7 +12,7 @@ poses observed with ``NOISE`` (cm, deg) of noise, the structure fitted from that
   cycle); found when it is among the selected (target: at least 90% each), and how often a
   second sequence or world effect comes with it.
 
-Taking the fitted rows as exact, as the selection did before, passed a spurious effect in 25
+Taking the fitted rows as exact, as the selection did before, passed a spurious effect in 24
 of 100 null trials on the shifted table (floor slope 16, battery sag 8, transition 4).
 Usage: ``python bench/run.py --only structure [--quick]``.
 """
