@@ -4,7 +4,7 @@ The per-punctuation structure fit (``model_fit.fit_structure``) fits the rows th
 their steps and then selects sequence and world effects on those runs. Taking the fitted rows
 as exact passed spurious effects: at 0.5 cm / 1 deg of pose noise, nine runs on an exact
 table, a floor slope in 16 of 100 trials, a battery sag in 8, a transition in 4; with three
-runs of one gait cycle (below), 16 of 20 trials. These tests fail on that selection.
+runs of one gait cycle (below), 5 of 20 trials. These tests fail on that selection.
 """
 
 from __future__ import annotations
