@@ -40,7 +40,7 @@ import numpy as np
 from pac_host.coverage import expand
 from pac_host.diagnose import Run, split_runs
 from pac_host.diagnose.pipeline import select_effects
-from pac_host.diagnose.residuals import batch_of, predicted_moves, step_residuals
+from pac_host.diagnose.residuals import batch_of, predicted_moves, row_design, step_residuals
 from pac_host.errors import InputError
 from pac_host.model.effects import EFFECT_SPECS, Effect, effective_rows
 from pac_host.model.table import N_IDS, GaitTable
@@ -127,8 +127,7 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
     first step is left out): a robot placed by hand starts at a nominal pose, or one read by
     another instrument than the steps' poses, and that one error passed for a drift or a sag.
     """
-    runs = [_free_start(r) for r in list(runs)[-STRUCTURE_RUNS:]]
-    runs = [r for r in runs if r.n > 0]
+    runs = [_free_start(r) for r in list(runs)[-STRUCTURE_RUNS:] if r.n >= 2]
     if len(runs) < MIN_RUNS_FOR_EFFECTS:
         return ()
     have = {e.name for e in base.effects}
@@ -151,9 +150,6 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
 
 def _free_start(run: Run) -> Run:
     """``run`` from its first observed pose on: its start pose and first step left out."""
-    if run.n < 2:
-        return Run(run.run_id, run.start_pose, run.gait_cycles[:0], run.poses[:0],
-                   run.cycles_since_power_on)
     return Run(run.run_id, run.poses[0], run.gait_cycles[1:], run.poses[1:],
                run.cycles_since_power_on + 1)
 
@@ -203,7 +199,7 @@ def _rows_only(base: GaitTable, runs: Sequence[Run], seq_fx: Sequence[Effect]) -
     batch = batch_of(runs)
     mask = batch.mask.ravel()
     resid = step_residuals(rows, batch, seq_fx).reshape(-1, 3)[mask]
-    design = _design(batch, seq_fx)[mask]
+    design = row_design(batch, seq_fx).reshape(-1, N_IDS)[mask]
     used = design.any(axis=0)
     rows = rows.copy()
     rows[used] += np.linalg.pinv(design[:, used]) @ resid
@@ -255,27 +251,10 @@ def correct(
     batch = batch_of(runs)
     mask = batch.mask.ravel()
     resid = step_residuals(struct_rows, batch, seq_fx).reshape(-1, 3)[mask]
-    design = _design(batch, seq_fx)[mask]  # (steps, 32)
+    design = row_design(batch, seq_fx).reshape(-1, N_IDS)[mask]  # (steps, 32)
     evidence = np.bincount(batch.ids.ravel()[mask], minlength=N_IDS)
     sigma, tau, mean, cov = _ridge(design, resid, evidence, prior)
     return Posterior(struct_rows + mean, cov, evidence, tuple(seq_fx), selected, tau, sigma)
-
-
-def _design(batch, effects: Sequence[Effect]) -> np.ndarray:
-    """d(predicted step) / d(row g), the same for F, T and dH: (R * N, 32).
-
-    For fixed sequence effects the prediction is linear in the rows (transition blends two
-    rows, battery sag scales one), so unit tables give the coefficients exactly.
-    """
-    if not effects:  # each step is its own row: one-hot
-        return (batch.ids.reshape(-1, 1) == np.arange(N_IDS)).astype(np.float64)
-    zero = predicted_moves(np.zeros((N_IDS, 3)), batch, effects)[..., 0]
-    cols = []
-    for g in range(N_IDS):
-        unit = np.zeros((N_IDS, 3))
-        unit[g] = 1.0
-        cols.append((predicted_moves(unit, batch, effects)[..., 0] - zero).ravel())
-    return np.stack(cols, axis=1)
 
 
 def _ridge(design: np.ndarray, resid: np.ndarray, evidence: np.ndarray, prior: np.ndarray):

@@ -14,7 +14,9 @@ import pytest
 
 from pac_host import cga, model_fit
 from pac_host.coverage import simulate
+from pac_host.diagnose.fit import Problem
 from pac_host.diagnose.fitted_rows import _row_columns, fitted_rows_problems
+from pac_host.diagnose.likelihood import whitener
 from pac_host.diagnose.noise import NoiseFloor
 from pac_host.diagnose.residuals import batch_of, step_residuals
 from pac_host.model import parse_effect, shifted_table
@@ -33,6 +35,11 @@ def _observed(pop, effects=(), budget=200, pos=0.5, head=1.0, rng=None):
         p[:, 2] += rng.normal(0, head, size=len(p))
         out.append(model_fit.Observed(model_fit.expand_ids(tc, budget)[: len(p) - 1], p))
     return model_fit._runs(out)
+
+
+def _problem(table, runs, noise):
+    b = batch_of(runs)
+    return Problem(table.rows, tuple(table.effects), b, whitener(b, noise))
 
 
 def _nine_runs(trial, effects=()):
@@ -82,7 +89,7 @@ def test_rows_are_profiled_exactly_beside_an_effect():
     fit, hold = runs[:4], runs[4:]
     wrong = GaitTable(shifted_table().rows + rng.normal(0, 1.0, (32, 3)), (), "wrong")
     noise = NoiseFloor(0.3, 0.5, "given", 0, True)
-    fit_p, hold_p = fitted_rows_problems(wrong, batch_of(fit), batch_of(hold), noise)
+    fit_p, hold_p = fitted_rows_problems(_problem(wrong, fit, noise), _problem(wrong, hold, noise))
     used = np.unique(batch_of(fit).ids[batch_of(fit).mask])
     rows = hold_p.rows_for((true,))
     assert np.abs(rows[used] - shifted_table().rows[used]).max() < 1e-8
@@ -110,13 +117,14 @@ def test_held_out_noise_carries_the_rows_error():
         runs = _observed(pop, rng=rng)
         fit, hold = runs[:2], runs[2:]
         fb, hb = batch_of(fit), batch_of(hold)
-        _, hold_p = fitted_rows_problems(shifted_table(), fb, hb, noise)
+        _, hold_p = fitted_rows_problems(_problem(shifted_table(), fit, noise),
+                                         _problem(shifted_table(), hold, noise))
         w = hold_p.whitened([])
         raw = hold_p.whitener.whiten(step_residuals(hold_p.rows, hb, ())).ravel()
         # the direction an error of the held-out runs' most used fitted row moves them along
         ids = hb.ids[hb.mask]
         g = max(set(ids) & set(fb.ids[fb.mask]), key=lambda k: int(np.sum(ids == k)))
-        d = _row_columns(hb, hold_p.whitener, (), [(int(g), 0)])[:, 0]
+        d = _row_columns(hold_p, [(int(g), 0)])[:, 0]
         d /= np.linalg.norm(d)
         z_in.append(float(w @ d))
         z_out.append(float(raw @ d))

@@ -27,54 +27,40 @@ as that error is large.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from pac_host.diagnose.fit import Problem
-from pac_host.diagnose.likelihood import Whitener, whitener
-from pac_host.diagnose.noise import NoiseFloor
-from pac_host.diagnose.residuals import Batch, predicted_moves, step_residuals
+from pac_host.diagnose.residuals import Batch, row_design, step_residuals
 from pac_host.model.effects import Effect
-from pac_host.model.table import N_IDS, GaitTable
 
 FREE_SCALE = 1e4  # a row with no fitting evidence: sd of its offset in whitened units
 RANK_TOL = 1e-10
 
 
-def _row_columns(batch: Batch, white: Whitener, base_effects: tuple[Effect, ...],
-                 keys: list[tuple[int, int]]) -> np.ndarray:
-    """Whitened d(predicted step) / d(row g, component c) for each (g, c) in ``keys``: (n, k).
-
-    Under the model's own sequence effects a row enters its steps linearly (transition blends
-    two rows, a sag scales one), so unit tables give the columns exactly."""
-    if not keys:
-        return np.zeros((white.whiten(np.zeros(batch.ids.shape + (3,))).size, 0))
-    zero = predicted_moves(np.zeros((N_IDS, 3)), batch, base_effects)
-    cols = np.empty((len(keys),) + batch.ids.shape + (3,))
-    unit_cache: dict[int, np.ndarray] = {}
+def _row_columns(prob: Problem, keys: list[tuple[int, int]]) -> np.ndarray:
+    """Whitened d(predicted step) / d(row g, component c) for each (g, c) in ``keys``: (n, k),
+    under the problem's own effects (:func:`~pac_host.diagnose.residuals.row_design`)."""
+    b = prob.batch
+    design = row_design(b, prob.base_effects) if keys else None
+    cols = np.zeros((len(keys),) + b.ids.shape + (3,))
     for i, (g, c) in enumerate(keys):
-        if g not in unit_cache:
-            unit = np.zeros((N_IDS, 3))
-            unit[g] = 1.0
-            unit_cache[g] = (predicted_moves(unit, batch, base_effects) - zero) \
-                * batch.mask[..., None]
-        cols[i] = 0.0
-        cols[i][..., c] = unit_cache[g][..., c]
-    return white.whiten(cols).reshape(len(keys), -1).T
+        cols[i][..., c] = design[..., g]
+    return prob.whitener.whiten(cols).reshape(len(keys), -1).T
 
 
 def _used(batch: Batch) -> np.ndarray:
     return np.unique(batch.ids[batch.mask]).astype(np.int64)
 
 
-def fitted_rows_problems(table: GaitTable, fit_b: Batch, hold_b: Batch, noise: NoiseFloor
-                         ) -> tuple[Problem, Problem]:
-    """(fitting, held-out) problems for effects on top of ``table`` whose rows used by the
-    fitting runs are estimated from them (see the module's docstring)."""
-    base = tuple(table.effects)
-    fit_w, hold_w = whitener(fit_b, noise), whitener(hold_b, noise)
+def fitted_rows_problems(fit_p: Problem, hold_p: Problem) -> tuple[Problem, Problem]:
+    """The (fitting, held-out) problems ``fit_p`` and ``hold_p``, for rows used by the fitting
+    runs that were estimated from them (see the module's docstring)."""
+    base, fit_b, hold_b, fit_w = fit_p.base_effects, fit_p.batch, hold_p.batch, fit_p.whitener
     used = _used(fit_b)
     keys = [(int(g), c) for g in used for c in range(3)]
-    x = _row_columns(fit_b, fit_w, base, keys)
+    x = _row_columns(fit_p, keys)
     lam, p = np.linalg.eigh(x.T @ x)
     keep = lam > RANK_TOL * max(float(lam.max(initial=0.0)), 1e-300)
     p, lam = p[:, keep], lam[keep]
@@ -91,19 +77,17 @@ def fitted_rows_problems(table: GaitTable, fit_b: Batch, hold_b: Batch, noise: N
         out[gi, ci] += gls @ w
         return out
 
-    rows0 = refit(np.asarray(table.rows, dtype=np.float64), ())
+    rows0 = refit(np.asarray(fit_p.rows, dtype=np.float64), ())
 
     def rows_for(effects: tuple[Effect, ...]) -> np.ndarray:
         return rows0 if not effects else refit(rows0, effects)
 
-    fit_p = Problem(rows0, base, fit_b, fit_w, correlated=(q, np.ones(q.shape[1])),
-                    dof_taken=q.shape[1])
+    fit_out = replace(fit_p, rows=rows0, correlated=(q, np.ones(q.shape[1])),
+                      dof_taken=q.shape[1])
     # held-out: the fitted rows' error (covariance C = P diag(1/lam) P^T) and free rows
-    xh = _row_columns(hold_b, hold_w, base, keys)
-    v = xh @ p / np.sqrt(lam)
     free = [(int(g), c) for g in np.setdiff1d(_used(hold_b), used) for c in range(3)]
-    if free:
-        v = np.hstack([v, FREE_SCALE * _row_columns(hold_b, hold_w, base, free)])
+    xh = _row_columns(hold_p, keys + free)
+    v = np.hstack([xh[:, : len(keys)] @ p / np.sqrt(lam), FREE_SCALE * xh[:, len(keys):]])
     if v.shape[1]:
         u, s, _ = np.linalg.svd(v, full_matrices=False)
         big = s > RANK_TOL * max(float(s.max()), 1e-300)
@@ -111,6 +95,6 @@ def fitted_rows_problems(table: GaitTable, fit_b: Batch, hold_b: Batch, noise: N
     else:
         u, s = v, np.zeros(0)
     f = 1.0 - 1.0 / np.sqrt(1.0 + s**2)
-    hold_p = Problem(rows0, base, hold_b, hold_w, rows_for=rows_for, correlated=(u, f),
-                     dof_taken=min(len(free), len(s)))
-    return fit_p, hold_p
+    hold_out = replace(hold_p, rows=rows0, rows_for=rows_for, correlated=(u, f),
+                       dof_taken=min(len(free), len(s)))
+    return fit_out, hold_out

@@ -166,10 +166,9 @@ def select_effects(table: GaitTable, fit_runs: Sequence[Run], hold_runs: Sequenc
     the rows the fitting runs use were fitted to their steps, so they are fitted beside each
     effect and their estimation error is counted in the held-out runs' noise
     (:mod:`~pac_host.diagnose.fitted_rows`)."""
-    fit_b, hold_b = batch_of(fit_runs), batch_of(hold_runs)
-    noise, fit_p, hold_p = _problems(table, fit_b, hold_b)
+    _, fit_p, hold_p = _problems(table, batch_of(fit_runs), batch_of(hold_runs))
     if rows_fitted:
-        fit_p, hold_p = fitted_rows_problems(table, fit_b, hold_b, noise)
+        fit_p, hold_p = fitted_rows_problems(fit_p, hold_p)
     return tuple(forward_select(fit_p, hold_p, library).selected)
 
 

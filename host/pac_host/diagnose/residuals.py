@@ -27,7 +27,7 @@ from pac_host.coverage import coverage_of_poses
 from pac_host.diagnose.runs import Run
 from pac_host.model.effects import Effect, step_moves
 from pac_host.model.kinematics import integrate, moves_between, to_body_frame
-from pac_host.model.table import COMPONENTS, side, strength
+from pac_host.model.table import COMPONENTS, N_IDS, side, strength
 
 
 @dataclass(frozen=True)
@@ -86,6 +86,23 @@ def predicted_moves(rows: np.ndarray, batch: Batch, effects: Sequence[Effect]) -
         body[..., 0] += f
         body[..., 1] += t
     return body
+
+
+def row_design(batch: Batch, effects: Sequence[Effect]) -> np.ndarray:
+    """d(predicted step) / d(row g), the same for F, T and dH: (R, N, 32), 0 on padded steps.
+
+    For fixed sequence effects the prediction is linear in the rows (transition blends two
+    rows, battery sag scales one), so unit tables give the coefficients exactly."""
+    if not effects:  # each step is its own row: one-hot
+        onehot = batch.ids[..., None] == np.arange(N_IDS)
+        return (onehot & batch.mask[..., None]).astype(np.float64)
+    zero = predicted_moves(np.zeros((N_IDS, 3)), batch, effects)[..., 0]
+    cols = []
+    for g in range(N_IDS):
+        unit = np.zeros((N_IDS, 3))
+        unit[g] = 1.0
+        cols.append(predicted_moves(unit, batch, effects)[..., 0] - zero)
+    return np.stack(cols, axis=-1) * batch.mask[..., None]
 
 
 def step_residuals(rows: np.ndarray, batch: Batch, effects: Sequence[Effect]) -> np.ndarray:
