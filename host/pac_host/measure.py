@@ -155,6 +155,8 @@ def measure_once(conn: Connection, cfg: MeasureConfig, gait: int, rep: int, log:
     if not report.completed:
         raise PacError(f"run {run_id}: the robot stopped after {report.done} of {cfg.cycles} "
                        "gait cycles")
+    if obs.start is not None:  # seen by the instrument that sees every later pose
+        seen = obs.start
     start = np.asarray(seen if seen is not None else cfg.start, dtype=np.float64)
     if obs.poses is not None:
         if runs is not None:

@@ -98,6 +98,16 @@ def test_camera_in_the_loop_gets_the_tracker_fed_results(tmp_path):
                     for t, c in zip(truns, cruns, strict=True)]).reshape(-1, 3)
     pos = np.hypot(err[:, 0], err[:, 1])
     assert len(pos) == 6 * 12 and np.median(pos) < 0.5 and np.median(np.abs(err[:, 2])) < 1
+    # each run starts where the camera saw the robot stand before its first gait cycle (the
+    # tracker's run: where the emulator placed it)
+    seen = [json.loads(x) for x in (tmp_path / "camera" / "observations.jsonl").read_text()
+            .splitlines()]
+    at_start = {o["run_id"]: o["pose"] for o in seen if o["type"] == "pose" and o["cycle"] == 0}
+    np.testing.assert_allclose([at_start[c["run_id"]] for c in cruns],
+                               [c["start_pose"] for c in cruns], atol=1e-4)  # as logged
+    err = np.array([np.subtract(c["start_pose"], t["start_pose"])
+                    for t, c in zip(truns, cruns, strict=True)])
+    assert np.hypot(err[:, 0], err[:, 1]).max() < 0.5 and np.abs(err[:, 2]).max() < 1
 
 
 def test_a_robot_leaving_the_view_is_a_lost_observation_mid_run(tmp_path):
@@ -109,4 +119,4 @@ def test_a_robot_leaving_the_view_is_a_lost_observation_mid_run(tmp_path):
     lost = [o for o in obs if o["type"] == "lost"]
     assert len(lost) == 1
     seen = [o for o in obs if o["type"] == "pose" and o["run_id"] == lost[0]["run_id"]]
-    assert [o["cycle"] for o in seen] == list(range(1, lost[0]["cycle"]))
+    assert [o["cycle"] for o in seen] == list(range(0, lost[0]["cycle"]))  # from its start

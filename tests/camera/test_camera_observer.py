@@ -13,10 +13,13 @@ from pac_host.camera.serve import PoseServer
 from pac_host.camera.sources import RenderSource
 from pac_host.robot.observers import ObserverError, open_observer
 
+START = (45.0, 30.0, 90.0)
 
-def _source(rig, path):
-    """The virtual camera showing the robot at path[power_on - 1] (None: not in view)."""
-    return RenderSource(rig[0], lambda key: path[key - 1], 0)
+
+def _source(rig, path, start=START):
+    """The virtual camera showing the robot at path[power_on - 1], before the run at ``start``
+    (None: not in view)."""
+    return RenderSource(rig[0], lambda key: start if key is None else path[key - 1], 0)
 
 
 def test_observer_takes_each_cycles_pose_and_reports_a_lost_marker(rig):
@@ -29,7 +32,7 @@ def test_observer_takes_each_cycles_pose_and_reports_a_lost_marker(rig):
     with pytest.raises(ObserverError, match="lost observation of gait cycle 5 of run r1: "
                        "robot marker 0 not seen in 2 frame"):
         obs.on_cycle(5)
-    poses = [r["pose"] for r in log if r["type"] == "pose"]
+    poses = [r["pose"] for r in log if r["type"] == "pose" and r["cycle"] > 0]
     assert len(poses) == 4 and log[-1]["type"] == "lost" and log[-1]["cycle"] == 5
     err = np.abs(np.array(poses) - np.array(path[:4]))
     assert err[:, :2].max() < 0.5 and err[:, 2].max() < 1.5  # unwrapped: 90 .. 45
@@ -43,7 +46,32 @@ def test_an_impossible_jump_is_lost_not_used(rig):
     obs.on_cycle(1)
     with pytest.raises(ObserverError, match="from its last pose"):
         obs.on_cycle(2)
-    assert [r["type"] for r in log] == ["pose", "lost"]
+    assert [(r["type"], r["cycle"]) for r in log] == [("pose", 0), ("pose", 1), ("lost", 2)]
+
+
+def test_the_start_pose_is_seen_before_the_first_gait_cycle(rig):
+    """A hand placement leaves the robot off the nominal start: the camera sees where, with
+    the instrument that sees every later pose; unseen, the run goes on from the placement."""
+    start = (47.3, 28.6, 93.5)
+    path = [(57.0, 29.5, 92.0), (69.0, 30.5, 91.0)]
+    for opts, where, seen in ((CameraOptions(frames=2), start, True),
+                              (CameraOptions(frames=2, start=0), start, False),
+                              (CameraOptions(frames=2), None, False)):
+        log = []
+        obs = CameraObserver(_source(rig, path, where), rig[1], opts, "camera:test")
+        obs.begin("s1", 0, log.append)
+        for k in (1, 2):
+            obs.on_cycle(k)
+        got = obs.finish(2)
+        assert len(got.poses) == 2
+        at_start = [r for r in log if r.get("cycle") == 0]
+        if seen:
+            assert np.hypot(*np.subtract(got.start[:2], start[:2])) < 0.3
+            assert abs(got.start[2] - start[2]) < 1.0
+            assert [r["pose"] for r in at_start] == [[round(v, 4) for v in got.start]]
+        else:
+            assert got.start is None and not at_start
+        assert [r["type"] for r in log].count("start_unseen") == (where is None)
 
 
 def test_a_lost_cycle_report_is_a_lost_observation(rig):
@@ -117,6 +145,7 @@ def test_a_video_file_gives_frames_per_window(rig, tmp_path):
     calib = tmp_path / "calib.json"
     rig[1].save(calib)
     obs = open_observer(f"camera:{video},calib={calib},frames=2")
+    assert not obs.sees_start  # a recording's frames are one window a gait cycle
     try:
         obs.begin("v1", 100, lambda _: None)
         for k in (101, 102):

@@ -40,6 +40,9 @@ class CameraOptions:
     spread: float = 2.0  # cm: frames farther than this from the window's median are dropped
     noise: float = 3.0  # sim: sensor noise (grey levels)
     seed: int = 0  # sim: seeds the sensor noise
+    # 1: a window before each run sees the start pose the robot was put at; 0: not; None: when
+    # the source shows the robot as it is now (a camera, the virtual one; not a recording)
+    start: int | None = None
 
     def check(self) -> None:
         if self.frames < 1:
@@ -48,6 +51,8 @@ class CameraOptions:
             raise InputError(f"camera window must be > 0 s, got {self.window}")
         if self.max_step <= 0 or self.spread <= 0 or self.margin < 0 or self.noise < 0:
             raise InputError("camera max_step and spread must be > 0, margin and noise >= 0")
+        if self.start not in (None, 0, 1):
+            raise InputError(f"camera start must be 0 or 1, got {self.start}")
 
 
 def wrap180(d: float) -> float:
@@ -114,13 +119,35 @@ class CameraObserver:
         self._run_id = ""
         self._record: Record = lambda _: None
         self._poses: list[tuple[float, float, float]] = []
+        self._start: tuple[float, float, float] | None = None
+        self.sees_start = bool(getattr(source, "now", False) if opts.start is None
+                               else opts.start)
 
     def begin(self, run_id: str, power_on_before: int, record: Record) -> None:
         self._run_id, self._n0, self._record = run_id, power_on_before, record
         self._poses = []
+        self._start = None
         begin_run = getattr(self.source, "begin_run", None)
         if begin_run is not None:
             begin_run(run_id)
+        if self.sees_start:
+            self._observe_start()
+
+    def _observe_start(self) -> None:
+        """The pose the robot stands at before its first gait cycle (the start a person or the
+        emulator put it at): the same instrument as every later pose, where a hand placement
+        is only nominal. Not seen, the run goes on from the placement's start pose."""
+        frames = self.source.window(self.opts.frames, self.opts.window, None)
+        pose, used, why = self.finder.in_window(frames, self.opts.heading0)
+        if pose is not None:
+            why = self.finder.impossible(pose, None)
+        if why:
+            self._record({"type": "start_unseen", "run_id": self._run_id, "why": why})
+            return
+        self._record({"type": "pose", "run_id": self._run_id, "cycle": 0,
+                      "power_on": self._n0, "pose": [round(v, 4) for v in pose],
+                      "frames": used, "observer": "camera"})
+        self._start = pose
 
     def on_cycle(self, power_on: int) -> None:
         i = (power_on - self._n0) % POWER_ON_MOD
@@ -136,10 +163,11 @@ class CameraObserver:
             self._observe(cycles, (self._n0 + cycles) % POWER_ON_MOD)
         if len(self._poses) < cycles:
             self._lost(len(self._poses) + 1, "no CYCLE report, no frame")
-        return Observation(poses=np.array(self._poses[:cycles], dtype=np.float64).reshape(-1, 3))
+        return Observation(poses=np.array(self._poses[:cycles], dtype=np.float64).reshape(-1, 3),
+                           start=self._start)
 
     def _observe(self, i: int, power_on: int) -> None:
-        prev = self._poses[-1] if self._poses else None
+        prev = self._poses[-1] if self._poses else self._start
         ref = prev[2] if prev is not None else self.opts.heading0
         frames = self.source.window(self.opts.frames, self.opts.window, power_on)
         pose, used, why = self.finder.in_window(frames, ref)
@@ -182,7 +210,7 @@ def options_from(raw: dict[str, str]) -> CameraOptions:
         if k not in types:
             raise InputError(f"camera option {k!r} unknown (calib, {', '.join(types)})")
         try:
-            val = int(v) if k in ("frames", "seed") else float(v)
+            val = int(v) if k in ("frames", "seed", "start") else float(v)
         except ValueError:
             raise InputError(f"camera option {k}={v!r} is not a number") from None
         out = replace(out, **{k: val})

@@ -4,7 +4,11 @@ virtual camera of :mod:`pac_host.camera.render`.
 ``window(n, seconds, key)`` gives the frames of one listening window: from a live camera, the
 frames captured after the call within ``seconds`` (at most ``n``; none if the camera stalled:
 an older frame is stale and never used); from a recording, the next ``n`` frames; from the
-virtual camera, ``n`` renderings of the robot at the pose ``key`` names.
+virtual camera, ``n`` renderings of the robot at the pose ``key`` names (None: where it is now).
+
+``now`` says whether a window shows the robot as it is when asked (a camera, the virtual one),
+so a window before a run sees the robot standing at its start; a recording's frames come in
+order, one window per gait cycle, and have none to spare for that.
 """
 
 from __future__ import annotations
@@ -60,6 +64,7 @@ class CaptureSource:
     def __init__(self, target: int | str) -> None:
         self.name = f"camera {target}" if isinstance(target, int) else f"video {target}"
         self.live = isinstance(target, int)
+        self.now = self.live
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # FFmpeg's own lines too
         level = cv2.utils.logging.getLogLevel()
         cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # one line, ours
@@ -109,6 +114,7 @@ class FolderSource:
     def __init__(self, folder: Path) -> None:
         self.name = f"folder {folder}"
         self.live = False
+        self.now = False
         self._files = sorted(p for p in Path(folder).iterdir()
                              if p.suffix.lower() in IMAGE_SUFFIXES)
         if not self._files:
@@ -146,6 +152,7 @@ class RenderSource:
                  seed: int = 0) -> None:
         self.name = "virtual camera"
         self.live = False
+        self.now = True
         self.renderer, self.pose_of, self.seed = renderer, pose_of, seed
         self.rng = np.random.default_rng(seed)
 

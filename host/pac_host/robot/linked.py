@@ -1,7 +1,9 @@
 """The robot side of PAL over the serial link: :class:`LinkedRobot` implements ``pal.Robot``.
 
 For each tested turn cycle: the robot is put at the start pose (by an operator, or by the
-emulator's world), the turn cycle is loaded, run for the budget, and observed; the figures come
+emulator's world), the turn cycle is loaded, run for the budget, and observed; the run starts
+where the observer saw the robot stand (a camera), else where the placement says, else at the
+nominal start pose; the figures come
 from the observed path (:func:`pac_host.coverage.coverage_of_poses`) or from the operator's
 count. Every observation is appended to the run's log before it is used, so a robot that stops
 answering mid-run leaves a log holding everything seen up to then.
@@ -136,6 +138,8 @@ class LinkedRobot:
                            f"{self.budget} gait cycles (STOP from elsewhere?)")
         gaits = expand(genes[None], self.budget)[0][0]
         self._check_reports(run_id, gaits, report.reports)
+        if obs.start is not None:  # seen by the instrument that sees every later pose
+            start = obs.start
         return self._result(run_id, start, gaits, obs.poses, report.power_on_before, obs)
 
     def _check_reports(self, run_id: str, gaits: np.ndarray, reports: list) -> None:

@@ -50,11 +50,13 @@ class ObserverError(PacError):
 @dataclass(frozen=True)
 class Observation:
     """What an observer saw of one run: the poses after each gait cycle (n, 3), or the coverage
-    figures the operator counted, or only the final pose."""
+    figures the operator counted, or only the final pose; and the pose the robot stood at
+    before its first gait cycle, if the observer saw it (``start``: a camera does)."""
 
     poses: np.ndarray | None = None
     figures: dict | None = None
     final_pose: tuple[float, float, float] | None = None
+    start: tuple[float, float, float] | None = None
 
 
 class Observer(Protocol):
