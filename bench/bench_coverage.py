@@ -2,7 +2,8 @@
 
 Evaluations per second are measured for the compiled kernel and for the numpy simulator, the
 reference (target: the kernel at least 3 times faster), also on models with a transition
-effect and with a battery sag, which the kernel compiles. Targets (issue: foundation):
+effect and with a battery sag, which the kernel compiles, and for the whole search
+(``search_evals_per_second``: ``optimize``, the kernel with the search's own work). Targets (issue: foundation):
 >= 100,000 turn-cycle evaluations per second on one core at a 200-cycle budget; one
 punctuation (40 CGA generations + 40 model-GA generations + the 3 robot tests) under 0.5 s;
 the 30-seed, two-method, 1000-generation experiment (paper profile) under 10 minutes with
@@ -77,6 +78,19 @@ def evals_per_second(quick: bool, kernel: str = "auto") -> dict:
     return out
 
 
+def search_evals_per_second(quick: bool) -> dict:
+    """Evaluations per second of the whole search (``optimize``: the kernel and the search's
+    own work between batches: neighbourhoods, kicks, ranking), one core, shifted table: what a
+    punctuation's budget of evaluations costs in time."""
+    from pac_host.search.optimize import OptimizeConfig, optimize
+
+    rows = shifted_table().rows
+    n = 200_000 if quick else 1_000_000
+    optimize(rows, OptimizeConfig(evaluations=20_000, seed=0))  # compile outside the timing
+    t = _times(lambda: optimize(rows, OptimizeConfig(evaluations=n, seed=0)), 3)
+    return {"evaluations": n, "best": round(n / t.min()), "median": round(n / float(np.median(t)))}
+
+
 def punctuation_seconds(quick: bool) -> dict:
     rng = np.random.default_rng(1)
     cfg = pal.PALConfig()
@@ -115,6 +129,7 @@ def run(quick: bool = False) -> dict:
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core
     res: dict = {"evals_per_second": evals_per_second(quick),
                  "evals_per_second_numpy": evals_per_second(quick, "numpy"),
+                 "search_evals_per_second": search_evals_per_second(quick),
                  "punctuation": punctuation_seconds(quick)}
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))

@@ -68,6 +68,28 @@ def test_small_changes_keep_the_gene_id_or_its_repetitions():
         assert len(neighbours(x, 200, only=j)) == 32 * 63
 
 
+
+@pytest.mark.parametrize("text, budget", [("12:60,3:10,0:0,5:3,7:1", 200),
+                                          ("1:63,2:1,3:2,4:62,5:30,6:3,7:4,8:5,9:6", 10**6),
+                                          ("1:63,2:1,3:2,4:62,5:30", 100), ("12:5", 200)])
+def test_paired_changes_are_every_two_gene_repetition_change_pair_by_pair(text, budget):
+    x = canonical(parse_turn_cycle(text), budget)
+    active = [j for j in range(9) if x[j, 1] > 0 and x[:j, 1].sum() < budget]
+    expected = []  # pairs in order, then (da, db) in order: the order a climb's ties go by
+    for a, i in enumerate(active):
+        for j in active[a + 1:]:
+            for da in range(-3, 4):
+                for db in range(-3, 4):
+                    y = x.copy()
+                    y[i, 1] += da
+                    y[j, 1] += db
+                    if (da or db) and 1 <= y[i, 1] <= 63 and 1 <= y[j, 1] <= 63:
+                        expected.append(y)
+    got = pair_neighbours(x, budget)
+    assert got.shape == (len(expected), 9, 2)
+    if expected:
+        np.testing.assert_array_equal(got, np.array(expected))
+
 def test_climb_ends_at_a_local_optimum():
     rows = measured_table().rows
     obj = Objective(rows, 200)

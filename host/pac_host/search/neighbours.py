@@ -16,6 +16,7 @@ batched call of the coverage simulator.
 from __future__ import annotations
 
 import functools
+import itertools
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from pac_host.coverage import MAX_GAIT_ID, MAX_REPS
 # Every (id, repetitions) a gene may take with repetitions > 0, and the empty gene.
 _VALUES = np.array([(i, r) for i in range(MAX_GAIT_ID + 1) for r in range(1, MAX_REPS + 1)]
                    + [(0, 0)], dtype=np.int64)
+_INDICES = np.arange(len(_VALUES))
 
 
 def canonical(genes: np.ndarray, budget: int) -> np.ndarray:
@@ -55,8 +57,8 @@ def value_indices(gene: np.ndarray, small: bool = False) -> np.ndarray:
     gid, reps = int(gene[0]), int(gene[1])
     if small and reps > 0:
         return _small_changes(gid, reps)
-    return np.delete(np.arange(len(_VALUES)), len(_VALUES) - 1 if reps == 0
-                     else gid * MAX_REPS + reps - 1)
+    k = len(_VALUES) - 1 if reps == 0 else gid * MAX_REPS + reps - 1
+    return np.concatenate((_INDICES[:k], _INDICES[k + 1:]))
 
 
 @functools.lru_cache(maxsize=len(_VALUES))
@@ -102,14 +104,16 @@ def pair_neighbours(genes: np.ndarray, budget: int, span: int = 3) -> np.ndarray
     da, db = (a.ravel() for a in np.meshgrid(d, d, indexing="ij"))
     keep = (da != 0) | (db != 0)
     da, db = da[keep], db[keep]
-    parts = []
-    for x, i in enumerate(active):
-        for j in active[x + 1:]:
-            block = np.repeat(genes[None], len(da), axis=0)
-            block[:, i, 1] += da
-            block[:, j, 1] += db
-            ok = ((block[:, [i, j], 1] >= 1) & (block[:, [i, j], 1] <= MAX_REPS)).all(axis=1)
-            parts.append(block[ok])
-    if not parts:
+    if len(active) < 2:
         return np.empty((0,) + genes.shape, dtype=np.int64)
-    return np.concatenate(parts)
+    # every pair (i < j) of active genes, then every (da, db), in that order (a climb takes
+    # the first of equal scores), built in one go: a climb asks for this at every look
+    i, j = (np.array(v) for v in zip(*itertools.combinations(active, 2), strict=True))
+    ri = genes[i, 1][:, None] + da  # (pairs, deltas): the new repetitions of genes i and j
+    rj = genes[j, 1][:, None] + db
+    pair, delta = np.nonzero((ri >= 1) & (ri <= MAX_REPS) & (rj >= 1) & (rj <= MAX_REPS))
+    out = np.repeat(genes[None], len(pair), axis=0)
+    k = np.arange(len(pair))
+    out[k, i[pair], 1] = ri[pair, delta]
+    out[k, j[pair], 1] = rj[pair, delta]
+    return out
