@@ -3,11 +3,11 @@
 Evaluations per second are measured for the compiled kernel and for the numpy simulator, the
 reference (target: the kernel at least 3 times faster), also on models with a transition
 effect and with a battery sag, which the kernel compiles, and for the whole search
-(``search_evals_per_second``: ``optimize``, the kernel with the search's own work). Targets (issue: foundation):
->= 100,000 turn-cycle evaluations per second on one core at a 200-cycle budget; one
-punctuation (40 CGA generations + 40 model-GA generations + the 3 robot tests) under 0.5 s;
-the 30-seed, two-method, 1000-generation experiment (paper profile) under 10 minutes with
---jobs 2.
+(``search_evals_per_second``: ``optimize``, the kernel with the search's own work).
+Targets (issue: foundation): >= 100,000 turn-cycle evaluations per second on one core at a
+200-cycle budget; one punctuation (40 CGA generations + 40 model-GA generations + the 3 robot
+tests) under 0.5 s; the 30-seed, two-method, 1000-generation experiment (paper profile) under
+10 minutes with --jobs 2.
 """
 
 from __future__ import annotations
