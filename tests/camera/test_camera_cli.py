@@ -120,3 +120,22 @@ def test_a_robot_leaving_the_view_is_a_lost_observation_mid_run(tmp_path):
     assert len(lost) == 1
     seen = [o for o in obs if o["type"] == "pose" and o["run_id"] == lost[0]["run_id"]]
     assert [o["cycle"] for o in seen] == list(range(0, lost[0]["cycle"]))  # from its start
+
+
+def test_measure_through_the_camera_starts_where_it_saw_the_robot(tmp_path):
+    """measure keeps a placement's first move only when its start was seen: through the
+    camera it is, so every gait cycle walked counts."""
+    out = tmp_path / "m.json"
+    res = _invoke("measure", "--ids", "12", "--repeats", "2", "--cycles", "3", "--out", out,
+                  "--observer", "camera:sim,frames=1")
+    assert res.exit_code == 0, res.output
+    seen = [json.loads(x) for x in
+            (tmp_path / "m.observations.jsonl").read_text().splitlines()]
+    at_start = {o["run_id"]: o["pose"] for o in seen if o["type"] == "pose" and o["cycle"] == 0}
+    runs = [json.loads(x) for x in (tmp_path / "m.runs.jsonl").read_text().splitlines()]
+    assert len(runs) == 2 and set(at_start) == {r["run_id"] for r in runs}
+    for r in runs:
+        np.testing.assert_allclose(r["start_pose"], at_start[r["run_id"]], atol=1e-4)
+        assert np.hypot(r["start_pose"][0] - 90, r["start_pose"][1] - 90) < 0.5
+    report = json.loads((tmp_path / "m.measure.json").read_text())
+    assert [f["n"] for f in report["fits"]] == [6]  # 2 placements x 3 moves, none dropped
