@@ -137,17 +137,9 @@ class CameraObserver:
         """The pose the robot stands at before its first gait cycle (the start a person or the
         emulator put it at): the same instrument as every later pose, where a hand placement
         is only nominal. Not seen, the run goes on from the placement's start pose."""
-        frames = self.source.window(self.opts.frames, self.opts.window, None)
-        pose, used, why = self.finder.in_window(frames, self.opts.heading0)
-        if pose is not None:
-            why = self.finder.impossible(pose, None)
+        self._start, why = self._look(0, None, self._n0, None)
         if why:
             self._record({"type": "start_unseen", "run_id": self._run_id, "why": why})
-            return
-        self._record({"type": "pose", "run_id": self._run_id, "cycle": 0,
-                      "power_on": self._n0, "pose": [round(v, 4) for v in pose],
-                      "frames": used, "observer": "camera"})
-        self._start = pose
 
     def on_cycle(self, power_on: int) -> None:
         i = (power_on - self._n0) % POWER_ON_MOD
@@ -167,18 +159,29 @@ class CameraObserver:
                            start=self._start)
 
     def _observe(self, i: int, power_on: int) -> None:
-        prev = self._poses[-1] if self._poses else self._start
+        pose, why = self._look(i, power_on, power_on,
+                               self._poses[-1] if self._poses else self._start)
+        if why:
+            self._lost(i, why)
+        self._poses.append(pose)
+
+    def _look(self, i: int, key: int | None, power_on: int,
+              prev: tuple[float, float, float] | None
+              ) -> tuple[tuple[float, float, float] | None, str]:
+        """Pose ``i`` of the run (0: its start) from the window the source gives for ``key``,
+        logged if seen, checked against the pose before it (``prev``, None: none); else None
+        and why not."""
         ref = prev[2] if prev is not None else self.opts.heading0
-        frames = self.source.window(self.opts.frames, self.opts.window, power_on)
+        frames = self.source.window(self.opts.frames, self.opts.window, key)
         pose, used, why = self.finder.in_window(frames, ref)
         if pose is not None:
             why = self.finder.impossible(pose, prev)
         if why:
-            self._lost(i, why)
+            return None, why
         self._record({"type": "pose", "run_id": self._run_id, "cycle": i, "power_on": power_on,
                       "pose": [round(v, 4) for v in pose], "frames": used,
                       "observer": "camera"})
-        self._poses.append(pose)
+        return pose, ""
 
     def _lost(self, i: int, why: str) -> None:
         self._record({"type": "lost", "run_id": self._run_id, "cycle": i, "why": why})
