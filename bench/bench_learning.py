@@ -40,6 +40,7 @@ from pac_host import profiles, robots
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import measured_table, shifted_table
 from pac_host.pal import PAPER, PALConfig
+from pac_host.search import shapes
 
 WALKING = 20_000_000  # search evaluations a punctuation for method "walking"
 # the learning methods compared: the paper's, and the whole-table correction
@@ -49,6 +50,8 @@ METHODS = {
     # the default profile: the whole table fitted, informative tests, no model GA, and the
     # anytime search between punctuations
     "default": profiles.apply("default", PALConfig()),
+    # the default without the library of good sweeps (each search starts from short CGA runs)
+    "no_shapes": profiles.apply("default", PALConfig(shapes="none")),
     "fit_ga": profiles.apply("default", PALConfig(model_generations=40)),  # + the model GA
     "paper_tests": profiles.apply("default", PALConfig(tests="paper")),  # the paper's tests
     # the default searching for a robot placed by hand (evolve's default: pac_host.placement)
@@ -84,12 +87,18 @@ def measure(robot_names, methods, seeds: int, out_root: Path, generations: int =
     for rname in robot_names:
         for mname in methods:
             pcfg = METHODS[mname]
+            d = out_root / rname / mname
+            if pcfg.shapes != "none":  # measured as on a robot nobody has searched: the
+                # library without the sweeps found on this one
+                d.mkdir(parents=True, exist_ok=True)
+                lib = d / "shapes.json"
+                lib.write_text(json.dumps(shapes.load(pcfg.shapes).without(rname).to_json()))
+                pcfg = replace(pcfg, shapes=str(lib))
             cfg = ExperimentConfig(
                 seeds=seeds, generations=generations, methods=tuple(recombination),
                 initial_generations=1000, optimum_runs=optimum_runs, optimum_search="optimize",
                 optimum_evaluations=optimum_evaluations, best_known=BEST_KNOWN.get(rname),
                 pal=pcfg)
-            d = out_root / rname / mname
             s = run_experiment(d, cfg, measured_table(), all_robots[rname], jobs,
                                resume=(d / "log.jsonl").exists())
             rt = s["robot_time"]

@@ -99,10 +99,11 @@ def initial_population(model: GaitTable, seed: int, cfg: ExperimentConfig) -> np
 def optimum_run(actual: GaitTable, k: int, cfg: ExperimentConfig) -> dict:
     """One long search on the actual robot's table: its best turn cycle and fitness. With
     ``optimum_search`` "optimize", run k is chain k of ``pac-host optimize --seed BASE_SEED``
-    with ``optimum_evaluations``; with "cga", a CGA run of ``optimum_generations``."""
+    with ``optimum_evaluations`` (starting from the runs' library of sweeps, ``--shapes``);
+    with "cga", a CGA run of ``optimum_generations``."""
     if cfg.optimum_search == "optimize":
         ocfg = OptimizeConfig(budget=cfg.pal.budget, evaluations=cfg.optimum_evaluations,
-                              seed=cfg.base_seed)
+                              seed=cfg.base_seed, shapes=cfg.pal.shapes)
         res = run_chain(actual.rows, tuple(actual.effects), ocfg, k, None,
                         cfg.optimum_evaluations)
         genes = np.array(res["genes"], dtype=np.int64)

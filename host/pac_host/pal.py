@@ -44,6 +44,8 @@ from pac_host.errors import InputError
 from pac_host.model.effects import Effect
 from pac_host.model.table import GaitTable
 from pac_host.robot_time import seconds_of_tests
+from pac_host.search import shapes
+from pac_host.search.kicks import loop_table
 
 CORRECTIONS = ("ga", "fit")
 OPERATIONAL = ("best", "tested")
@@ -141,6 +143,10 @@ class PALConfig:
     # population (the model, then draws from its posterior), pooled, so a turn cycle whose
     # rows the tests have not pinned scores lower; 1: on the model alone
     search_models: int = 1
+    # With an anytime search: a library of good sweeps ("builtin", "none" or a pac-shapes/1
+    # file), re-expressed on each new model as starting points (pac_host.search.shapes), with
+    # the search's own best from the model before
+    shapes: str = "none"
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -170,6 +176,10 @@ class PALConfig:
         if self.search_models > self.model_population:
             raise InputError(f"--search-models {self.search_models} is more than the "
                              f"{self.model_population} models there are")
+        if self.shapes != "none" and self.search == "cga":
+            raise InputError("--shapes needs an anytime profile (the paper's CGA starts from "
+                             "its own population)")
+        shapes.load(self.shapes)  # one clear error for a bad library
         if self.placement_error() is not None and self.search == "cga":
             raise InputError("--placement-error needs an anytime profile (the paper's CGA "
                              "scores from the exact start)")
@@ -222,6 +232,12 @@ def initial_state(
     models = model_ga.perturbed_population(model.rows, cfg.model_population, rng, mcfg.scale)
     if cga_pop is None:
         cga_pop = cga.random_population(rng, cfg.cga_population)
+    library = shapes.load(cfg.shapes) if cfg.search != "cga" else shapes.Library(())
+    if library.shapes:  # the library's best sweep on the model takes the last place
+        found = shapes.proposals(library.sources(), loop_table(model.rows, model.effects),
+                                 cfg.budget)
+        best = found[int(np.argmax(cga.fitness(model.rows, found, cfg.budget, model.effects)))]
+        cga_pop = np.concatenate([cga_pop[:-1], best[None]])
     fit = cga.fitness(model.rows, cga_pop, cfg.budget, model.effects)
     cga_pop = cga_pop[np.argsort(-fit, kind="stable")]
     return PALState(0, cga_pop, models, tuple(model.effects), cga_pop[0].copy(), None, None,
@@ -445,13 +461,17 @@ class _AnytimeSearch:
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
+        library = shapes.load(self.cfg.shapes)
+        sources = library.sources() + [shapes.carried(self.pop[0], self.state.models[0],
+                                                      self.state.model_effects)]
         rank, _ = _ranking(models, self.pop, self.cfg, effects)
         pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
         self.pop, rec, chain = anytime.advance(
             models[0], pop, self.cfg.search_evaluations, self.rng, self.cfg.budget, effects,
             self.cfg.search, chain=carried, placement=self.cfg.placement_error(),
-            models=_pooled_models(models, self.cfg))
+            models=_pooled_models(models, self.cfg),
+            shapes=sources if library.shapes else ())
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
         if self.walking_evaluations is not None:

@@ -9,7 +9,8 @@
   anytime PAL: between punctuations the CGA's place is taken by iterated local search
   (:mod:`pac_host.search`) with a budget of coverage evaluations per punctuation, run while the
   robot walks the tests; the experiment's optimum comes from
-  :func:`pac_host.search.optimize.optimize`.
+  :func:`pac_host.search.optimize.optimize`. Each new model's search also starts from the
+  project's library of good sweeps re-expressed on it (:mod:`pac_host.search.shapes`).
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -24,7 +25,7 @@ from pac_host.pal import PAPER
 
 PROFILES: dict[str, dict] = {
     "paper": {**PAPER, "search": "cga"},
-    "default": {"search": "ils", "search_evaluations": 400_000},
+    "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin"},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

@@ -196,7 +196,8 @@ def test_experiment_on_a_robot_file_reports_robot_time(tmp_path):
         "--optimum-runs", "1", "--optimum-generations", "30", "--methods", "partial,oracle",
         "--actual", str(robot), "--correction", "fit", "--model-generations", "0",
         "--tests", "informative", "--operational", "tested", "--best-known", "40",
-        "--optimum-evaluations", "20000", "--search-evaluations", "5000",
+        "--optimum-evaluations", "20000", "--search-evaluations", "5000", "--shapes",
+        "none",
         "--out", str(out)], catch_exceptions=False)
     assert res.exit_code == 0, res.output
     s = json.loads((out / "summary.json").read_text())

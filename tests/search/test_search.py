@@ -164,7 +164,7 @@ def test_search_beats_the_cga_on_robots_it_was_not_built_on():
     n = 128 * 1500
     found, cga_best = [], []
     for rows, effects in robots:
-        res = optimize(rows, OptimizeConfig(evaluations=n, seed=1), effects)
+        res = optimize(rows, OptimizeConfig(evaluations=n, seed=1, shapes="none"), effects)
         _, best = cga.evolve(rows, cga.random_population(rng, 128), 1499, rng, effects=effects)
         assert res["evaluations"] == n
         found.append(res["fitness"])

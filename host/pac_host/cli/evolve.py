@@ -17,6 +17,7 @@ from pac_host.cli.options import (
     profile_pal,
     search_evaluations_option,
     search_models_option,
+    shapes_option,
 )
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
@@ -63,6 +64,7 @@ from pac_host.robot.recovery import describe_counts
 @profile_option()
 @search_evaluations_option()
 @search_models_option()
+@shapes_option()
 @click.option("--search-while-walking/--no-search-while-walking", default=None,
               help="Also search while the robot walks the tests, on the model they were chosen "
                    "on (its 13 minutes become search time; the run is then not reproducible "
@@ -71,7 +73,8 @@ from pac_host.robot.recovery import describe_counts
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
                correction, structure, tests, operational, placement, profile, search_evaluations,
-               search_models, search_while_walking, port, observer_spec, placer, **sim) -> None:
+               search_models, shapes, search_while_walking, port, observer_spec, placer,
+               **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
     Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
@@ -112,7 +115,8 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         learn = profile_pal(profile, search_evaluations, model_generations,
                             dict(model_fitness=model_fitness, correction=correction,
                                  structure=structure, tests=tests, operational=operational,
-                                 placement=placement, search_models=search_models))
+                                 placement=placement, search_models=search_models,
+                                 shapes=shapes))
         if placement is None:  # a robot is placed by hand (or seen through a noisy tracker)
             learn = replace(learn, placement="none" if learn.search == "cga" else HAND.to_text())
         if search_while_walking is None:
@@ -130,7 +134,8 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            model=_spec(model_spec), robot=_robot(port, observer_spec, sim),
                            correction=learn.correction, structure=learn.structure,
                            tests=learn.tests, operational=learn.operational,
-                           placement=learn.placement, search_models=learn.search_models)
+                           placement=learn.placement, search_models=learn.search_models,
+                           shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)
     with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:

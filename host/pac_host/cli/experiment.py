@@ -21,6 +21,7 @@ from pac_host.cli.options import (
     progress_enabled,
     search_evaluations_option,
     search_models_option,
+    shapes_option,
 )
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
 from pac_host.errors import InputError
@@ -83,6 +84,7 @@ from pac_host.plots import experiment_plots
 @profile_option()
 @search_evaluations_option()
 @search_models_option()
+@shapes_option()
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 @scheduler_options
 @placement_option()
@@ -90,7 +92,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
                    optimum_runs, optimum_generations, optimum_evaluations, best_known,
                    model_generations, correction, structure, tests, operational, placement, profile,
-                   search_evaluations, search_models, resume, scheduler, connect_timeout) -> None:
+                   search_evaluations, search_models, shapes, resume, scheduler,
+                   connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
@@ -119,7 +122,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         pal=profile_pal(profile, search_evaluations, model_generations,
                         dict(model_fitness=model_fitness, correction=correction,
                              structure=structure, tests=tests, operational=operational,
-                             placement=placement, search_models=search_models),
+                             placement=placement, search_models=search_models,
+                             shapes=shapes),
                         budget=check_budget(budget)),
     )
     actual = load_with_effects(actual_spec, effect_specs)

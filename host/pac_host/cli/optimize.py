@@ -14,6 +14,7 @@ from pac_host.cli.options import (
     load_with_effects,
     placed_text,
     placement_option,
+    shapes_option,
     table_option,
 )
 from pac_host.coverage import DEFAULT_BUDGET
@@ -40,6 +41,7 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
               help="Share of a gene's 2,016 changes a climb scores each time it looks at the "
                    "gene (1: every change, an exact local optimum).")
 @placement_option()
+@shapes_option("builtin")
 @click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED))
 @click.option("--jobs", default=1, show_default=True, type=click.IntRange(1, 64),
               help="Processes running chains side by side.")
@@ -48,7 +50,7 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
               help="Draw the best fitness against seconds to this PNG.")
 def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains, sample,
-                 placement, seed, jobs, json_out, plot) -> None:
+                 placement, shapes, seed, jobs, json_out, plot) -> None:
     """Find the best turn cycle on a model: iterated local search with restarts.
 
     Prints the best turn cycle, its coverage figures (as `simulate` gives them) and how the
@@ -61,7 +63,8 @@ def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains,
     if seconds is None and evaluations is None:
         seconds = 60.0
     cfg = OptimizeConfig(budget=budget, seconds=seconds, evaluations=evaluations, chains=chains,
-                         seed=seed, sample=sample, placement=parse_placement(placement))
+                         seed=seed, sample=sample, placement=parse_placement(placement),
+                         shapes=shapes)
     cfg.check()
     table = load_with_effects(table_spec, effect_specs)
     if json_out is not None and json_out.is_dir():

@@ -128,6 +128,16 @@ def search_models_option():
              "pinned (an anytime profile; each table costs an evaluation).")
 
 
+def shapes_option(default: str | None = None):
+    return click.option(
+        "--shapes", "shapes", default=default, show_default=default is not None,
+        metavar="builtin|none|FILE",
+        help="Sweeps known to be good (a pac-shapes/1 file, or the project's: builtin), "
+             "re-expressed on each model the search starts on; none: start from short CGA "
+             "runs alone." + ("" if default else " [default: builtin with an anytime "
+                              "profile, none with paper]"))
+
+
 def profile_pal(profile: str, search_evaluations: int | None, model_generations: int | None,
                 options: dict, **fields):
     """The PAL settings of a profile: ``fields`` under it, the profile's overrides, then those

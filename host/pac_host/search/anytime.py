@@ -19,6 +19,7 @@ from pac_host.coverage import DEFAULT_BUDGET
 from pac_host.model.effects import Effect
 from pac_host.placement import PlacementError
 from pac_host.search.local import Chain, Objective
+from pac_host.search.shapes import Source
 
 METHODS = ("ils",)
 PATIENCE = 50  # kicks without a higher score before the chain restarts (as optimize's)
@@ -30,7 +31,8 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
             cancelled: Callable[[], bool] | None = None,
             chain: Chain | None = None,
             placement: PlacementError | None = None,
-            models: np.ndarray | None = None) -> tuple[np.ndarray, dict, Chain]:
+            models: np.ndarray | None = None,
+            shapes: Sequence[Source] = ()) -> tuple[np.ndarray, dict, Chain]:
     """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
     ``evaluations`` None: until ``cancelled`` says stop (it must be given then).
@@ -43,7 +45,9 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     from its stencil of start poses (:class:`~pac_host.search.local.Objective`; a turn cycle
     costs seven evaluations); with ``models``, other tables the robot may be, on them too,
     pooled (an evaluation is one walk), and the best turn cycle on ``rows`` alone comes second
-    in the population: a candidate test of the rows the model is hopeful about.
+    in the population: a candidate test of the rows the model is hopeful about. With
+    ``shapes`` (:mod:`pac_host.search.shapes`) a chain whose model has changed also considers
+    their sweeps re-expressed on this one.
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
@@ -53,7 +57,7 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled,
                           placement=placement, models=models)
     if evaluations is None or evaluations > 0:
-        chain.run(objective, rng, PATIENCE)
+        chain.run(objective, rng, PATIENCE, shapes=shapes)
     record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}
     if objective.best is None:
         return pop, record, chain

@@ -29,6 +29,8 @@ from pac_host.search.neighbours import (
     slots,
     value_indices,
 )
+from pac_host.search.shapes import Source
+from pac_host.search.shapes import start as shape_start
 
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 # What the search scores are (Objective.fingerprint): a chain carried from a run whose scores
@@ -248,15 +250,27 @@ class Chain:
     score: int | None = None  # x's search score on the model it was last climbed on, and the model
     model: str | None = None
     starts: int = 0  # starting points so far, a given one included (picks the loop divisor)
+    shaped: str | None = None  # the model the shapes were last re-expressed on
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
-            kick_genes: int = 2, sample: float = SAMPLE) -> None:
+            kick_genes: int = 2, sample: float = SAMPLE,
+            shapes: Sequence[Source] = ()) -> None:
         """Search until the objective's budget or deadline is spent. A carried-on chain first
-        re-scores and climbs its local optimum if the objective's model has changed."""
+        re-scores and climbs its local optimum if the objective's model has changed. With
+        ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
+        the first start on a model is the best of them re-expressed on it, if that scores
+        higher than the chain's own point."""
         model = objective.fingerprint()
         try:
             while True:
-                if self.x is None:
+                shaped = None
+                if shapes and self.shaped != model:
+                    shaped = shape_start(objective, shapes)
+                    self.shaped = model
+                if self.x is None and shaped is not None and shaped[0] is not None:
+                    (x, score), self.starts = shaped, self.starts + 1
+                    self.x, self.stale, self.model = x, 0, None
+                elif self.x is None:
                     div = LOOP_DIVISORS[self.starts % len(LOOP_DIVISORS)]
                     x, score = cga_start(objective, rng, divisor=div)
                     self.starts += 1
@@ -265,6 +279,9 @@ class Chain:
                     x, score = self.x, self.score
                 else:
                     x, score = self.x, int(objective(self.x[None])[0])
+                    if shaped is not None and shaped[0] is not None and shaped[1] > score:
+                        x, score, self.stale = *shaped, 0
+                        self.x = x
                 if self.model != model:
                     x, score = climb(x, score, objective, rng, sample)
                     self.x, self.score, self.model = x, score, model
@@ -282,24 +299,26 @@ class Chain:
 
     def to_json(self) -> dict:
         return {"x": None if self.x is None else self.x.tolist(), "stale": self.stale,
-                "score": self.score, "model": self.model, "starts": self.starts}
+                "score": self.score, "model": self.model, "starts": self.starts,
+                "shaped": self.shaped}
 
     @classmethod
     def from_json(cls, doc: dict) -> Chain:
         x, score, model = doc.get("x"), doc.get("score"), doc.get("model")
         return cls(None if x is None else np.array(x, dtype=np.int64), int(doc.get("stale", 0)),
                    None if score is None else int(score), None if model is None else str(model),
-                   int(doc.get("starts", 0)))
+                   int(doc.get("starts", 0)),
+                   None if doc.get("shaped") is None else str(doc["shaped"]))
 
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
              kick_genes: int = 2, start: np.ndarray | None = None,
-             sample: float = SAMPLE) -> None:
-    """Iterated local search from ``start`` (or the best of a short CGA run), restarted whenever
-    it stalls for ``patience`` kicks, until the budget runs out (a :class:`Chain` run to the
-    end); the best is ``objective.best``."""
+             sample: float = SAMPLE, shapes: Sequence[Source] = ()) -> None:
+    """Iterated local search from ``start`` (or the best of ``shapes`` re-expressed on the
+    model, or of a short CGA run), restarted whenever it stalls for ``patience`` kicks, until
+    the budget runs out (a :class:`Chain` run to the end); the best is ``objective.best``."""
     Chain(start, starts=int(start is not None)).run(objective, rng, patience, kick_genes,
-                                                    sample)
+                                                    sample, shapes)
 
 
 def cga_start(objective: Objective, rng: np.random.Generator,

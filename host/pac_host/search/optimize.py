@@ -4,7 +4,9 @@ Iterated local search with restarts (:mod:`pac_host.search.local`): climb single
 (a fresh random tenth of a gene's any-change neighbourhood each look) until none improves, kick
 two genes (a closing kick, :mod:`pac_host.search.kicks`, for a loop the budget repeats) and climb
 again, moving on to any local optimum at least as fit, and restart from a short CGA run after
-``patience`` kicks in a row without progress.
+``patience`` kicks in a row without progress. A chain's first start is the best of a library
+of good sweeps re-expressed on the model (:mod:`pac_host.search.shapes`; ``shapes="none"``:
+a short CGA run as well).
 The search runs as ``chains`` independent chains, each seeded from ``SeedSequence([seed,
 chain])``; ``jobs`` processes run them side by side, so for a budget in evaluations the result
 depends on the seed alone. A budget in seconds is split among the chains by wall time (each
@@ -34,6 +36,7 @@ from pac_host.coverage import (
 from pac_host.errors import InputError
 from pac_host.model.effects import Effect
 from pac_host.placement import WALKS, PlacementError, placed_fitness, summary
+from pac_host.search import shapes
 from pac_host.search.local import SAMPLE, Objective, restarts
 
 MAX_SECONDS = 7 * 24 * 3600.0
@@ -53,6 +56,9 @@ class OptimizeConfig:
     kick_genes: int = 2
     sample: float = SAMPLE  # share of a gene's any-change neighbourhood a climb scores a look
     placement: PlacementError | None = None  # score from a stencil of start poses
+    # sweeps known to be good, re-expressed on the model as each chain's first start
+    # (pac_host.search.shapes): "builtin", "none" or a pac-shapes/1 file
+    shapes: str = "builtin"
 
     def check(self) -> None:
         if self.seconds is None and self.evaluations is None:
@@ -67,6 +73,7 @@ class OptimizeConfig:
             raise InputError("patience must be >= 1 and kick genes 1..9")
         if not 0 < self.sample <= 1:
             raise InputError(f"--sample must be in (0, 1], got {self.sample}")
+        shapes.load(self.shapes)
 
 
 def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig, chain: int,
@@ -78,7 +85,8 @@ def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig
     objective = Objective(rows, cfg.budget, effects, limit=evaluations,
                           deadline=None if seconds is None else t0 + seconds,
                           placement=cfg.placement)
-    restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample)
+    restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample,
+             shapes=shapes.load(cfg.shapes).sources())
     # chains are ranked by score: the best's coverage score, or its pooled search score when
     # the walks are from a placement's stencil
     score = objective.best_score if cfg.placement is None else objective.best_search_score

@@ -1,0 +1,158 @@
+"""A library of sweeps known to be good, and the search's starts made from them on a new model.
+
+A search on a new model (another robot, or the model a punctuation's tests have just corrected)
+need not start from nothing: the sweeps found on other tables, re-expressed on this one
+(:mod:`pac_host.search.retarget`), are starting points a climb takes much further than from a
+short CGA run. The library is a ``pac-shapes/1`` file: each sweep's turn cycle, the table it
+was found on (a built-in table or robot name, or a ``pac-gait-table/1`` file beside the library)
+and its fitness there. ``builtin`` is the project's (``shapes.json``): the best turn cycles
+known on the built-in tables and robots. A chain also carries its own best from the model it
+had before (:func:`carried`).
+
+>>> lib = load("builtin")
+>>> len(lib.without("shifted").shapes) < len(lib.shapes)
+True
+>>> from pac_host.model import shifted_table
+>>> from pac_host.search.local import Objective
+>>> objective = Objective(shifted_table().rows)
+>>> x, score = start(objective, lib.without("shifted").sources())
+>>> objective.fitness(score) >= 40, objective.evaluations < 1000
+(True, True)
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pac_host.coverage import format_turn_cycle, parse_turn_cycle
+from pac_host.errors import InputError
+from pac_host.model.effects import Effect
+from pac_host.model.table import BUILTIN, GaitTable, load_table
+from pac_host.search.kicks import loop_table
+from pac_host.search.neighbours import canonical
+from pac_host.search.retarget import BEAM, retarget
+
+FORMAT = "pac-shapes/1"
+CHOICES = ("builtin", "none")  # or a file
+_BUILTIN_FILE = Path(__file__).with_name("shapes.json")
+
+# A source of starts: a turn cycle (9, 2) and the moves of the table it walks well on.
+Source = tuple[np.ndarray, np.ndarray]
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One sweep of a library: its genes, the table it was found on, its fitness there."""
+
+    genes: np.ndarray
+    table: str
+    fitness: int | None
+    found_on: str
+
+
+@dataclass(frozen=True)
+class Library:
+    shapes: tuple[Shape, ...]
+    folder: Path | None = None  # where table files named by the shapes are
+
+    def without(self, robot: str) -> Library:
+        """The library less the sweeps found on ``robot`` (to measure a method on a robot as
+        on one nobody has searched)."""
+        return Library(tuple(s for s in self.shapes if s.found_on != robot), self.folder)
+
+    def sources(self) -> list[Source]:
+        """Each sweep with its table's moves (:func:`pac_host.search.kicks.loop_table`)."""
+        return [(s.genes, _moves(s.table, self.folder)) for s in self.shapes]
+
+    def to_json(self) -> dict:
+        return {"format": FORMAT, "shapes": [
+            {"turn_cycle": format_turn_cycle(s.genes), "table": s.table, "fitness": s.fitness,
+             "found_on": s.found_on} for s in self.shapes]}
+
+
+def table_of(name: str, folder: Path | None = None) -> GaitTable:
+    """A shape's table: a built-in table or robot name, or a table file (beside the library)."""
+    from pac_host import robots
+
+    if name in BUILTIN:
+        return BUILTIN[name]()
+    if name in robots.ROBOTS:
+        return robots.build(name)
+    path = Path(name) if folder is None else folder / name
+    return load_table(path)
+
+
+@functools.lru_cache(maxsize=64)
+def _moves(name: str, folder: Path | None) -> np.ndarray:
+    t = table_of(name, folder)
+    return loop_table(t.rows, t.effects)
+
+
+@functools.lru_cache(maxsize=8)
+def load(spec: str) -> Library:
+    """``builtin``, ``none`` or a ``pac-shapes/1`` file; bad input is an :class:`InputError`."""
+    if spec == "none":
+        return Library(())
+    path = _BUILTIN_FILE if spec == "builtin" else Path(spec)
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read shapes file {spec}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"shapes file {spec} is not JSON: {exc}") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"{spec} is not a {FORMAT} file")
+    shapes = []
+    folder = path.resolve().parent
+    for k, item in enumerate(doc.get("shapes") or []):
+        try:
+            genes = parse_turn_cycle(str(item["turn_cycle"]))
+            table = str(item["table"])
+            fitness = None if item.get("fitness") is None else int(item["fitness"])
+            found_on = str(item.get("found_on", table))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"{spec}: shape {k} needs turn_cycle and table ({exc})") from None
+        except InputError as exc:
+            raise InputError(f"{spec}: shape {k}: {exc}") from None
+        try:
+            _moves(table, folder)
+        except InputError as exc:
+            raise InputError(f"{spec}: shape {k}: {exc}") from None
+        shapes.append(Shape(genes, table, fitness, found_on))
+    return Library(tuple(shapes), folder)
+
+
+def carried(genes: np.ndarray, rows: np.ndarray, effects: Sequence[Effect] = ()) -> Source:
+    """A turn cycle found on a model (``rows``, ``effects``) as a source of starts on the next."""
+    return np.asarray(genes), loop_table(rows, effects)
+
+
+def proposals(sources: Sequence[Source], target: np.ndarray, budget: int,
+              beam: int = BEAM) -> np.ndarray:
+    """Every source re-expressed on the ``target`` table's moves, ``beam`` proposals each,
+    canonical and without repeats (N, 9, 2)."""
+    if not sources:
+        return np.zeros((0, 9, 2), dtype=np.int64)
+    pop = np.concatenate([retarget(g, m, target, beam) for g, m in sources])
+    pop = canonical(pop, budget)
+    _, first = np.unique(pop.reshape(len(pop), -1), axis=0, return_index=True)
+    return pop[np.sort(first)]
+
+
+def start(objective, sources: Sequence[Source]) -> tuple[np.ndarray | None, int | None]:
+    """The best of the sources' proposals on the objective's model, scored through it (the
+    evaluations count), and its search score; (None, None) without sources."""
+    pop = proposals(sources, objective.loop_table(), objective.budget)
+    if not len(pop):
+        return None, None
+    scores = objective(pop)
+    if not len(scores):
+        return None, None
+    i = int(np.argmax(scores))
+    return pop[i].copy(), int(scores[i])

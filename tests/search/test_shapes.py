@@ -1,0 +1,189 @@
+"""The library of good sweeps: re-expressing a path on another table, and the searches'
+starts made from it (pac_host.search.retarget, pac_host.search.shapes)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pac_host import pal, robots
+from pac_host.cli.main import main
+from pac_host.coverage import parse_turn_cycle, simulate
+from pac_host.model import measured_table, shifted_table
+from pac_host.model.kinematics import loop_moves
+from pac_host.search import shapes
+from pac_host.search.kicks import loop_table
+from pac_host.search.local import Chain, Objective
+from pac_host.search.retarget import retarget
+
+LIB = shapes.load("builtin")
+
+
+def _fitness(table, genes) -> np.ndarray:
+    return simulate(table.rows, np.atleast_3d(genes).reshape(-1, 9, 2), 200,
+                    table.effects).fitness
+
+
+@pytest.mark.parametrize("shape", LIB.shapes, ids=lambda s: f"{s.table}-{s.fitness}")
+def test_each_sweep_of_the_library_scores_as_recorded_on_its_table(shape):
+    assert int(_fitness(shapes.table_of(shape.table), shape.genes)[0]) == shape.fitness
+
+
+@pytest.mark.parametrize("shape", LIB.shapes, ids=lambda s: f"{s.table}-{s.fitness}")
+def test_a_sweep_re_expressed_on_its_own_table_walks_the_same_loop(shape):
+    table = shapes.table_of(shape.table)
+    moves = loop_table(table.rows, table.effects)
+    first = retarget(shape.genes, moves, moves)[0]
+    assert np.allclose(loop_moves(first, moves), loop_moves(shape.genes, moves), atol=1e-9)
+    assert _fitness(table, first)[0] == shape.fitness
+
+
+def test_a_turn_shift_is_a_relabelling_the_re_expression_undoes():
+    """The shifted robot's rows are the measured table's one strength weaker: a sweep found on
+    the one is the same path on the other with other gait ids."""
+    src = parse_turn_cycle("29:7,21:11,17:3,7:21,3:1,21:13,12:4,7:1,2:8")  # 46 on shifted
+    y = retarget(src, loop_table(shifted_table().rows), loop_table(measured_table().rows))
+    assert _fitness(measured_table(), y[0])[0] == 46
+    assert _fitness(measured_table(), src)[0] < 20  # the same genes are another walk
+
+
+def test_the_path_carries_over_where_the_genes_do_not():
+    """The library's sweeps on robots whose tables differ from theirs: the best re-expressed
+    path scores well above the best of the same genes, on each (before any climb: 44 against
+    4 on the shifted robot, 22 against 14 and 19 against 8 on the other two)."""
+    for name, table in (("shifted", shifted_table()),
+                        ("noisy_rows", robots.build("noisy_rows", 2)),
+                        ("asymmetric", robots.build("asymmetric"))):
+        lib = LIB.without(name)
+        proposals = shapes.proposals(lib.sources(), loop_table(table.rows, table.effects), 200)
+        assert len(proposals) > 5 * len(lib.shapes)
+        raw = _fitness(table, np.stack([s.genes for s in lib.shapes])).max()
+        moved = _fitness(table, proposals).max()
+        assert moved >= raw + 8, (name, raw, moved)
+
+
+def test_without_leaves_out_the_sweeps_found_on_a_robot():
+    rest = LIB.without("shifted")
+    assert rest.shapes and all(s.found_on != "shifted" for s in rest.shapes)
+    assert len(rest.shapes) == len(LIB.shapes) - sum(s.found_on == "shifted" for s in LIB.shapes)
+    assert shapes.load("none").shapes == ()
+
+
+def test_a_chain_starts_from_the_best_sweep_re_expressed_on_the_model():
+    table = shifted_table()
+    sources = LIB.without("shifted").sources()
+    best = _fitness(table, shapes.proposals(sources, loop_table(table.rows), 200)).max()
+    with_lib, without = (Objective(table.rows, limit=3000) for _ in range(2))
+    chain = Chain()
+    chain.run(with_lib, np.random.default_rng(0), 50, shapes=sources)
+    Chain().run(without, np.random.default_rng(0), 50)
+    assert chain.starts == 1 and chain.shaped == with_lib.fingerprint()
+    assert with_lib.fitness(with_lib.best_search_score) >= best
+    assert best > without.fitness(without.best_search_score)
+    assert Chain.from_json(json.loads(json.dumps(chain.to_json()))).to_json() == chain.to_json()
+
+
+def test_a_carried_chain_takes_a_sweep_only_if_it_beats_its_own_point():
+    table = shifted_table()
+    sources = LIB.without("shifted").sources()
+    poor = parse_turn_cycle("12:14,3:10")
+    chain = Chain(poor, starts=1)
+    objective = Objective(table.rows, limit=1000)
+    chain.run(objective, np.random.default_rng(1), 50, shapes=sources)
+    assert objective.fitness(objective.best_search_score) >= 40  # the sweep took its place
+    good = parse_turn_cycle("29:7,21:11,17:3,7:21,3:1,21:13,12:4,7:1,2:8")
+    chain = Chain(good, starts=1)
+    objective = Objective(table.rows, limit=1000)
+    chain.run(objective, np.random.default_rng(1), 50, shapes=sources)
+    assert objective.fitness(objective.best_search_score) == 46  # its own point kept
+
+
+def test_pal_puts_the_librarys_best_sweep_on_the_starting_model_in_its_population():
+    cfg = pal.PALConfig(search="ils", search_evaluations=1000, shapes="builtin",
+                        cga_population=16)
+    rng = np.random.default_rng(0)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    plain = pal.initial_state(measured_table(), np.random.default_rng(0),
+                              pal.PALConfig(search="ils", search_evaluations=1000,
+                                            cga_population=16))
+    assert _fitness(measured_table(), state.cga_pop[0])[0] == 46  # the library's, re-expressed
+    assert _fitness(measured_table(), plain.cga_pop[0])[0] < 30
+
+
+def test_the_oracle_with_the_library_reaches_the_robots_best_sooner(tmp_path):
+    """A short anytime PAL run (the oracle: the search on the robot's own table), with the
+    library less the robot's own sweeps against without it."""
+    from pac_host.experiment import ExperimentConfig, run_experiment
+
+    lib = tmp_path / "lib.json"
+    lib.write_text(json.dumps(LIB.without("shifted").to_json()))
+    finals = {}
+    for name in ("none", str(lib)):
+        cfg = ExperimentConfig(
+            seeds=2, generations=80, methods=("oracle",), initial_generations=20,
+            optimum_runs=1, optimum_search="optimize", optimum_evaluations=20_000,
+            pal=pal.PALConfig(search="ils", search_evaluations=20_000, shapes=name,
+                              cga_population=32))
+        s = run_experiment(tmp_path / name.replace("/", "_"), cfg, measured_table(),
+                           shifted_table(), 1)
+        finals[name] = [r["coverage"][-1] for r in s["runs"]]
+    assert min(finals[str(lib)]) >= 40 > max(finals["none"]), finals
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, "cannot read shapes file"),
+    ("{", "is not JSON"),
+    ('{"format": "other"}', "is not a pac-shapes/1 file"),
+    ('{"format": "pac-shapes/1", "shapes": [{"turn_cycle": "1:2"}]}', "shape 0 needs"),
+    ('{"format": "pac-shapes/1", "shapes": [{"turn_cycle": "1:99", "table": "measured"}]}',
+     "shape 0"),
+    ('{"format": "pac-shapes/1", "shapes": [{"turn_cycle": "1:2", "table": "nowhere.json"}]}',
+     "shape 0"),
+])
+def test_a_bad_shapes_file_is_one_line_and_exit_2(tmp_path, content, message):
+    path = tmp_path / "shapes.json"
+    if content is not None:
+        path.write_text(content)
+    res = CliRunner().invoke(main, ["optimize", "--table", "shifted", "--evaluations", "1000",
+                                    "--shapes", str(path)])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], res.output
+
+
+def test_the_paper_profile_takes_no_library(tmp_path):
+    res = CliRunner().invoke(main, ["experiment", "--profile", "paper", "--shapes", "builtin",
+                                    "--seeds", "1", "--out", str(tmp_path / "x")])
+    assert res.exit_code == 2 and "--shapes needs an anytime profile" in res.output
+
+
+def test_optimize_starts_from_the_library_unless_told_not_to(tmp_path):
+    def run(*extra):
+        res = CliRunner().invoke(main, ["optimize", "--table", "shifted", "--evaluations",
+                                        "2000", "--seed", "0", *extra])
+        assert res.exit_code == 0, res.output
+        return int(next(ln for ln in res.output.splitlines()
+                        if ln.startswith("fitness:")).split()[1])
+
+    assert run() == 46 > run("--shapes", "none")
+
+
+def test_evolve_takes_the_library_by_default_and_keeps_it_in_its_config(tmp_path):
+    from pac_host.evolve import EvolveConfig, load_config
+
+    assert EvolveConfig().shapes == "none"  # a run saved before the library had none
+    assert EvolveConfig(search="ils", search_evaluations=10, shapes="builtin").pal().shapes \
+        == "builtin"
+    out = tmp_path / "run"
+    res = CliRunner().invoke(main, ["evolve", "--out", str(out), "--generations", "20",
+                                    "--interval", "20", "--cga-population", "16",
+                                    "--initial-generations", "5", "--search-evaluations",
+                                    "2000", "--budget", "100"])
+    assert res.exit_code == 0, res.output
+    assert load_config(out).shapes == "builtin"
+    bad = CliRunner().invoke(main, ["evolve", "--out", str(tmp_path / "bad"), "--shapes",
+                                    str(tmp_path / "missing.json")])
+    assert bad.exit_code == 2 and "cannot read shapes file" in bad.output
