@@ -5,11 +5,14 @@
   the best fitness per seed, the seconds to reach the best known (median over seeds), and a plot
   of best fitness against seconds (median and range over seeds). Target (shifted): fitness 34
   or better on at least 9 of 10 seeds.
+- ``library``: chains started from the library of good sweeps re-expressed on the model
+  against chains without it, at LIBRARY_EVALUATIONS each, on robots none of the library was
+  found on (the built-in robots less their own sweeps, and robots of other seeds and effects).
 - ``experiment``: the 30-seed, three-method experiment with the default profile (anytime PAL,
   its search budget per punctuation) and --jobs 2: wall time (target <= 20 minutes) and the
   oracle's final fitness against the best known (target: >= 95% on at least 27 of 30 seeds).
 
-Usage: ``python bench/run.py --only search`` (about 45 minutes on an idle 2-core machine;
+Usage: ``python bench/run.py --only search`` (about 50 minutes on an idle 2-core machine;
 ``--quick`` is a smoke run).
 """
 
@@ -21,12 +24,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-from pac_host.model import measured_table, shifted_table
+from pac_host import robots
+from pac_host.model import GaitTable, measured_table, shifted_table
+from pac_host.model.effects import parse_effect
 from pac_host.plots import optimize_progress
+from pac_host.search import shapes
 from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 
 HERE = Path(__file__).resolve().parent
@@ -58,6 +65,48 @@ def optimize_runs(table, seeds: int, seconds: float, plot: Path) -> dict:
             "plot": str(plot), "runs": runs}
 
 
+LIBRARY_EVALUATIONS = 1_000_000
+
+
+def library_targets() -> list[tuple[str, str, GaitTable]]:
+    """(label, the robot whose sweeps the library leaves out, table): robots none of the
+    library's sweeps was found on."""
+    return [
+        ("shifted", "shifted", shifted_table()),
+        ("asymmetric", "asymmetric", robots.build("asymmetric")),
+        ("outside_library", "outside_library", robots.build("outside_library")),
+        ("noisy_rows seed 1", "noisy_rows", robots.build("noisy_rows", 1)),
+        ("noisy_rows seed 2", "noisy_rows", robots.build("noisy_rows", 2)),
+        ("library_on_changed seed 1", "library_on_changed", robots.build("library_on_changed", 1)),
+        ("shifted + stride_scale 0.9", "shifted",
+         shifted_table().with_effects((parse_effect("stride_scale:a=0.9"),))),
+        ("measured + turn_scale 1.15", "measured",
+         measured_table().with_effects((parse_effect("turn_scale:c=1.15"),))),
+    ]
+
+
+def _library_run(args) -> int:
+    table, lib, seed, evaluations = args
+    r = optimize(table.rows, OptimizeConfig(evaluations=evaluations, seed=seed, shapes=lib),
+                 table.effects)
+    return int(r["fitness"])
+
+
+def library_runs(seeds: int, evaluations: int, jobs: int = 2) -> dict:
+    out = {}
+    with tempfile.TemporaryDirectory() as d, ProcessPoolExecutor(jobs) as pool:
+        for label, robot, table in library_targets():
+            lib = Path(d) / f"{robot}.json"
+            lib.write_text(json.dumps(shapes.load("builtin").without(robot).to_json()))
+            runs = {name: list(pool.map(_library_run, [(table, spec, k, evaluations)
+                                                        for k in range(seeds)]))
+                    for name, spec in (("without", "none"), ("library", str(lib)))}
+            out[label] = {**runs, **{f"{k}_mean": float(np.mean(v)) for k, v in runs.items()}}
+    gain = [v["library_mean"] - v["without_mean"] for v in out.values()]
+    return {"evaluations": evaluations, "seeds": seeds, "targets": out,
+            "mean_gain": round(float(np.mean(gain)), 2)}
+
+
 def experiment(quick: bool, best_known: int) -> dict:
     seeds, gens = (2, 120) if quick else (30, 1000)
     with tempfile.TemporaryDirectory() as d:
@@ -85,6 +134,8 @@ def run(quick: bool = False) -> dict:
     res = {"optimize": {
         name: optimize_runs(table, seeds, seconds, out_dir / f"optimize_{name}.png")
         for name, table in (("shifted", shifted_table()), ("measured", measured_table()))}}
+    res["library"] = library_runs(2 if quick else 4,
+                                  100_000 if quick else LIBRARY_EVALUATIONS)
     shifted = res["optimize"]["shifted"]
     res["experiment"] = experiment(quick, shifted["best_known"])
     exp = res["experiment"]
@@ -99,3 +150,8 @@ def run(quick: bool = False) -> dict:
                                     "met": exp["wall_s"] <= 1200},
     }
     return res
+
+
+if __name__ == "__main__":  # the library comparison alone: python bench/bench_search.py library
+    if sys.argv[1:] == ["library"]:
+        print(json.dumps(library_runs(4, LIBRARY_EVALUATIONS, jobs=1), indent=1))
