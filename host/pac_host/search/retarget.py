@@ -29,10 +29,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from pac_host.search.kicks import WEIGHT
 from pac_host.search.neighbours import _VALUES
 
 BEAM = 50  # partial walks kept at each gene; every one of the last is a proposal
-WEIGHT = 200.0  # cm of displacement error that weigh as much as one radian of heading error
 
 
 def retarget(genes: np.ndarray, source: np.ndarray, target: np.ndarray, beam: int = BEAM,
