@@ -462,8 +462,8 @@ class _AnytimeSearch:
         from pac_host.search.local import Chain
 
         library = shapes.load(self.cfg.shapes)
-        sources = library.sources() + [shapes.carried(self.pop[0], self.state.models[0],
-                                                      self.state.model_effects)]
+        sources = () if not library.shapes else library.sources() + [
+            shapes.carried(self.pop[0], self.state.models[0], self.state.model_effects)]
         rank, _ = _ranking(models, self.pop, self.cfg, effects)
         pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
@@ -471,7 +471,7 @@ class _AnytimeSearch:
             models[0], pop, self.cfg.search_evaluations, self.rng, self.cfg.budget, effects,
             self.cfg.search, chain=carried, placement=self.cfg.placement_error(),
             models=_pooled_models(models, self.cfg),
-            shapes=sources if library.shapes else ())
+            shapes=sources)
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
         if self.walking_evaluations is not None:

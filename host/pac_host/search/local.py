@@ -263,11 +263,11 @@ class Chain:
         model = objective.fingerprint()
         try:
             while True:
-                shaped = None
-                if shapes and self.shaped != model:
+                shaped = None  # re-expressed once per model, where a start is to be chosen
+                if shapes and self.shaped != model and (self.x is None or self.model != model):
                     shaped = shape_start(objective, shapes)
                     self.shaped = model
-                if self.x is None and shaped is not None and shaped[0] is not None:
+                if self.x is None and shaped is not None:
                     (x, score), self.starts = shaped, self.starts + 1
                     self.x, self.stale, self.model = x, 0, None
                 elif self.x is None:
@@ -279,7 +279,7 @@ class Chain:
                     x, score = self.x, self.score
                 else:
                     x, score = self.x, int(objective(self.x[None])[0])
-                    if shaped is not None and shaped[0] is not None and shaped[1] > score:
+                    if shaped is not None and shaped[1] > score:
                         x, score, self.stale = *shaped, 0
                         self.x = x
                 if self.model != model:

@@ -145,14 +145,14 @@ def proposals(sources: Sequence[Source], target: np.ndarray, budget: int,
     return pop[np.sort(first)]
 
 
-def start(objective, sources: Sequence[Source]) -> tuple[np.ndarray | None, int | None]:
+def start(objective, sources: Sequence[Source]) -> tuple[np.ndarray, int] | None:
     """The best of the sources' proposals on the objective's model, scored through it (the
-    evaluations count), and its search score; (None, None) without sources."""
+    evaluations count), and its search score; None without sources."""
     pop = proposals(sources, objective.loop_table(), objective.budget)
     if not len(pop):
-        return None, None
+        return None
     scores = objective(pop)
     if not len(scores):
-        return None, None
+        return None
     i = int(np.argmax(scores))
     return pop[i].copy(), int(scores[i])
