@@ -50,24 +50,25 @@ def _block(x: float, y: float, c: float, s: float) -> int:
     return -1 if bad else int(row * _COLUMNS + col)
 
 
-def _figures(blocks: np.ndarray, n: int, visits: np.ndarray, out: np.ndarray, k: int
-             ) -> np.ndarray:
+def _figures(blocks: np.ndarray, n: int, top: int, visits: np.ndarray, first: np.ndarray,
+             out: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """(covered, covered once, fitness, repeat visits, reached at) of one path's detected
-    blocks into ``out[:, k]``: as ``coverage.figures_from_blocks``. ``visits`` is a scratch
-    buffer, grown when a path reaches further; returns it."""
-    top = -1
-    for t in range(n):
-        if blocks[t] > top:
-            top = blocks[t]
+    blocks (``top`` the highest) into ``out[:, k]``: as ``coverage.figures_from_blocks``.
+    ``visits`` and ``first`` (the step each block was first detected at) are scratch buffers,
+    grown when a path reaches further; returns them. One pass over the steps, then one over
+    the blocks: the figures cost no more than the blocks a path reaches."""
     n_rows = top // _COLUMNS + 2
     if visits.shape[0] < n_rows * _COLUMNS:
         visits = np.zeros(2 * n_rows * _COLUMNS, dtype=np.int64)
+        first = np.zeros(2 * n_rows * _COLUMNS, dtype=np.int64)
     else:
         visits[: n_rows * _COLUMNS] = 0
     prev = -1
     for t in range(n):
         b = blocks[t]
         if b >= 0 and b != prev:
+            if visits[b] == 0:
+                first[b] = t
             visits[b] += 1
         prev = b
     covered = once = total = 0
@@ -91,18 +92,12 @@ def _figures(blocks: np.ndarray, n: int, visits: np.ndarray, out: np.ndarray, k:
     # reached at: the pose at which the last of the blocks the fitness counts (every block
     # of the full rows, the covered ones of the first row that is not) was first detected
     reached = 0
-    left = fitness
     end = (fitness // _COLUMNS + 1) * _COLUMNS
-    for t in range(n):
-        if left == 0:
-            break
-        b = blocks[t]
-        if b >= 0 and b < end and visits[b] > 0:
-            visits[b] = -visits[b]  # seen
-            left -= 1
-            reached = t
+    for b in range(end):
+        if visits[b] > 0 and first[b] > reached:
+            reached = first[b]
     out[4, k] = reached
-    return visits
+    return visits, first
 
 
 def _shared_steps(a: np.ndarray, b: np.ndarray, budget: int) -> int:
@@ -170,10 +165,13 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
     ps = np.empty(budget + 1, dtype=np.complex128)
     js = np.empty(budget + 1, dtype=np.int64)
     used = np.empty(budget + 1, dtype=np.int64)  # repetitions of gene js[t] walked by t
+    tops = np.empty(budget + 1, dtype=np.int64)  # the highest block detected by t
     visits = np.zeros(64, dtype=np.int64)
+    first = np.zeros(64, dtype=np.int64)
     blocks[0] = _block(p0.real, p0.imag, q0.real, q0.imag)
     qs[0] = q0
     ps[0] = p0
+    tops[0] = blocks[0]
     for k in range(n_paths):
         g = genes[k % n_genes]
         base = (k // n_genes) * 32
@@ -186,6 +184,10 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
             s = _shared_steps(g, genes[k % n_genes - 1], budget)
         q = qs[s]
         p = ps[s]
+        top = tops[s]
+        # a later path shares at most this path's first pass of the loop: the state after
+        # each gait cycle is kept that far
+        keep = min(loop, budget)
         prev = -1  # the gait id walked last: none at the start
         if s == 0:
             j = 0
@@ -219,12 +221,17 @@ def _score_paths(genes: np.ndarray, n_tables: int, rot: np.ndarray, disp: np.nda
             step = d * q
             q = q * r
             p = p + (step + dr)
-            blocks[t] = _block(p.real, p.imag, q.real, q.imag)
-            qs[t] = q
-            ps[t] = p
-            js[t] = j
-            used[t] = g[j, 1] - left
-        visits = _figures(blocks, budget + 1, visits, out, k)
+            b = _block(p.real, p.imag, q.real, q.imag)
+            blocks[t] = b
+            if b > top:
+                top = b
+            if t <= keep:
+                qs[t] = q
+                ps[t] = p
+                js[t] = j
+                used[t] = g[j, 1] - left
+                tops[t] = top
+        visits, first = _figures(blocks, budget + 1, top, visits, first, out, k)
     return out
 
 
