@@ -86,6 +86,44 @@ def test_a_chain_starts_from_the_best_sweep_re_expressed_on_the_model():
     assert Chain.from_json(json.loads(json.dumps(chain.to_json()))).to_json() == chain.to_json()
 
 
+def test_starts_give_each_sources_best_proposal_best_first():
+    table = shifted_table()
+    sources = LIB.without("shifted").sources()
+    objective = Objective(table.rows)
+    found = shapes.starts(objective, sources)
+    assert len(found) == len(sources)  # the sources' sweeps differ: one start each
+    scores = [s for _, s in found]
+    assert scores == sorted(scores, reverse=True)
+    best = _fitness(table, shapes.proposals(sources, loop_table(table.rows), 200)).max()
+    assert objective.fitness(scores[0]) == best
+    for genes, score in found:
+        assert int(objective(genes[None])[0]) == score
+    mine = [shapes.starts(Objective(table.rows), [src])[0][1] for src in sources]
+    assert sorted(mine, reverse=True) == scores  # each is the best its own source proposes
+    assert np.array_equal(shapes.start(Objective(table.rows), sources)[0], found[0][0])
+
+
+def test_a_chain_restarts_from_the_next_sources_sweep_before_any_cga_start():
+    table = shifted_table()
+    sources = LIB.without("shifted").sources()
+    first = shapes.starts(Objective(table.rows), sources)
+    chain = Chain()
+    objective = Objective(table.rows, limit=60_000)
+    chain.run(objective, np.random.default_rng(0), 2, shapes=sources)  # restart after 2 kicks
+    taken = chain.starts
+    assert 3 <= taken <= len(sources)  # restarted, each time from the library
+    assert [s for _, s in chain.queue] == [s for _, s in first[taken:]]
+    assert all(np.array_equal(g, h) for (g, _), (h, _) in zip(chain.queue, first[taken:],
+                                                              strict=True))
+    again = Chain.from_json(json.loads(json.dumps(chain.to_json())))
+    assert again.to_json() == chain.to_json()
+    # carried on on the same model it goes on through the queue, not re-expressing it
+    before = objective.evaluations
+    objective.limit = before + 60_000
+    chain.run(objective, np.random.default_rng(1), 2, shapes=sources)
+    assert chain.starts > taken and len(chain.queue) == len(first) - chain.starts
+
+
 def test_a_carried_chain_takes_a_sweep_only_if_it_beats_its_own_point():
     table = shifted_table()
     sources = LIB.without("shifted").sources()

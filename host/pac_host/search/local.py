@@ -30,7 +30,7 @@ from pac_host.search.neighbours import (
     value_indices,
 )
 from pac_host.search.shapes import Source
-from pac_host.search.shapes import start as shape_start
+from pac_host.search.shapes import starts as shape_starts
 
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 # What the search scores are (Objective.fingerprint): a chain carried from a run whose scores
@@ -251,6 +251,9 @@ class Chain:
     model: str | None = None
     starts: int = 0  # starting points so far, a given one included (picks the loop divisor)
     shaped: str | None = None  # the model the shapes were last re-expressed on
+    # the starts the shapes gave on that model and not yet taken, (turn cycle, search score)
+    # best first, one a source: a restart there takes the next before any CGA start
+    queue: list = field(default_factory=list)
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2, sample: float = SAMPLE,
@@ -259,16 +262,18 @@ class Chain:
         re-scores and climbs its local optimum if the objective's model has changed. With
         ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
         the first start on a model is the best of them re-expressed on it, if that scores
-        higher than the chain's own point."""
+        higher than the chain's own point, and each restart on that model takes the next
+        source's best re-expressed sweep, while there is one, before any CGA start."""
         model = objective.fingerprint()
         try:
             while True:
-                shaped = None  # re-expressed once per model, where a start is to be chosen
+                # re-expressed once per model, where a start is to be chosen
                 if shapes and self.shaped != model and (self.x is None or self.model != model):
-                    shaped = shape_start(objective, shapes)
+                    self.queue = shape_starts(objective, shapes)
                     self.shaped = model
-                if self.x is None and shaped is not None:
-                    (x, score), self.starts = shaped, self.starts + 1
+                queued = bool(self.queue) and self.shaped == model
+                if self.x is None and queued:
+                    (x, score), self.starts = self.queue.pop(0), self.starts + 1
                     self.x, self.stale, self.model = x, 0, None
                 elif self.x is None:
                     div = LOOP_DIVISORS[self.starts % len(LOOP_DIVISORS)]
@@ -279,8 +284,8 @@ class Chain:
                     x, score = self.x, self.score
                 else:
                     x, score = self.x, int(objective(self.x[None])[0])
-                    if shaped is not None and shaped[1] > score:
-                        x, score, self.stale = *shaped, 0
+                    if queued and self.queue[0][1] > score:
+                        (x, score), self.stale = self.queue.pop(0), 0
                         self.x = x
                 if self.model != model:
                     x, score = climb(x, score, objective, rng, sample)
@@ -300,7 +305,8 @@ class Chain:
     def to_json(self) -> dict:
         return {"x": None if self.x is None else self.x.tolist(), "stale": self.stale,
                 "score": self.score, "model": self.model, "starts": self.starts,
-                "shaped": self.shaped}
+                "shaped": self.shaped,
+                "queue": [[g.tolist(), s] for g, s in self.queue]}
 
     @classmethod
     def from_json(cls, doc: dict) -> Chain:
@@ -308,7 +314,8 @@ class Chain:
         return cls(None if x is None else np.array(x, dtype=np.int64), int(doc.get("stale", 0)),
                    None if score is None else int(score), None if model is None else str(model),
                    int(doc.get("starts", 0)),
-                   None if doc.get("shaped") is None else str(doc["shaped"]))
+                   None if doc.get("shaped") is None else str(doc["shaped"]),
+                   [(np.array(g, dtype=np.int64), int(s)) for g, s in doc.get("queue") or []])
 
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,

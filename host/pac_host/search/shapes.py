@@ -137,22 +137,41 @@ def proposals(sources: Sequence[Source], target: np.ndarray, budget: int,
               beam: int = BEAM) -> np.ndarray:
     """Every source re-expressed on the ``target`` table's moves, ``beam`` proposals each,
     canonical and without repeats (N, 9, 2)."""
+    return _proposals(sources, target, budget, beam)[0]
+
+
+def _proposals(sources: Sequence[Source], target: np.ndarray, budget: int, beam: int = BEAM
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`proposals` and, for each, the index of the first source that proposed it."""
     if not sources:
-        return np.zeros((0, 9, 2), dtype=np.int64)
-    pop = np.concatenate([retarget(g, m, target, beam) for g, m in sources])
-    pop = canonical(pop, budget)
+        return np.zeros((0, 9, 2), dtype=np.int64), np.zeros(0, dtype=np.int64)
+    parts = [retarget(g, m, target, beam) for g, m in sources]
+    pop = canonical(np.concatenate(parts), budget)
+    owner = np.repeat(np.arange(len(parts)), [len(p) for p in parts])
     _, first = np.unique(pop.reshape(len(pop), -1), axis=0, return_index=True)
-    return pop[np.sort(first)]
+    first = np.sort(first)
+    return pop[first], owner[first]
+
+
+def starts(objective, sources: Sequence[Source]) -> list[tuple[np.ndarray, int]]:
+    """Each source's best proposal on the objective's model and its search score, best first
+    (one start per source: sweeps of different shapes lead to different basins), scored
+    through the objective (the evaluations count); empty without sources."""
+    pop, owner = _proposals(sources, objective.loop_table(), objective.budget)
+    if not len(pop):
+        return []
+    scores = objective(pop)
+    pop, owner = pop[: len(scores)], owner[: len(scores)]  # a budget may cut the batch
+    best: dict[int, int] = {}
+    for i, o in enumerate(owner.tolist()):
+        if o not in best or scores[i] > scores[best[o]]:
+            best[o] = i
+    order = sorted(best.values(), key=lambda i: (-int(scores[i]), i))
+    return [(pop[i].copy(), int(scores[i])) for i in order]
 
 
 def start(objective, sources: Sequence[Source]) -> tuple[np.ndarray, int] | None:
     """The best of the sources' proposals on the objective's model, scored through it (the
     evaluations count), and its search score; None without sources."""
-    pop = proposals(sources, objective.loop_table(), objective.budget)
-    if not len(pop):
-        return None
-    scores = objective(pop)
-    if not len(scores):
-        return None
-    i = int(np.argmax(scores))
-    return pop[i].copy(), int(scores[i])
+    found = starts(objective, sources)
+    return found[0] if found else None
