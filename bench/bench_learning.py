@@ -64,6 +64,8 @@ METHODS = {
     "pooled": profiles.apply("default", PALConfig(search_models=4)),
     "walking_pooled": replace(profiles.apply("default", PALConfig(search_models=4)),
                               search_evaluations=WALKING),
+    # the default without its Thompson-sampled test (each search's whole budget on the model)
+    "no_explore": replace(profiles.apply("default", PALConfig()), explore=0.0),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find

@@ -73,6 +73,7 @@ class EvolveConfig:
     placement: str = pal.PALConfig.placement
     search_models: int = pal.PALConfig.search_models
     shapes: str = pal.PALConfig.shapes  # runs saved before the library: none
+    explore: float = pal.PALConfig.explore  # runs saved before it: 0
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -100,7 +101,7 @@ class EvolveConfig:
             model_population=self.model_population, budget=self.budget,
             correction=self.correction, structure=self.structure, tests=self.tests,
             operational=self.operational, placement=self.placement, search=self.search,
-            search_models=self.search_models, shapes=self.shapes,
+            search_models=self.search_models, shapes=self.shapes, explore=self.explore,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

@@ -147,6 +147,11 @@ class PALConfig:
     # file), re-expressed on each new model as starting points (pac_host.search.shapes), with
     # the search's own best from the model before
     shapes: str = "none"
+    # With an anytime search and posterior draws (the "fit" correction): this share of the
+    # budget searches one draw from the corrected model's posterior, from the search's best,
+    # and the best found there takes the test after the best (Thompson sampling): a sweep over
+    # rows no test has pinned gets tested when a plausible table favours it
+    explore: float = 0.0
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -180,6 +185,11 @@ class PALConfig:
             raise InputError("--shapes needs an anytime profile (the paper's CGA starts from "
                              "its own population)")
         shapes.load(self.shapes)  # one clear error for a bad library
+        if not 0.0 <= self.explore < 1.0:
+            raise InputError(f"--explore must be a share in [0, 1), got {self.explore}")
+        if self.explore > 0 and self.search == "cga":
+            raise InputError("--explore needs an anytime profile (the paper's CGA searches one "
+                             "model)")
         if self.placement_error() is not None and self.search == "cga":
             raise InputError("--placement-error needs an anytime profile (the paper's CGA "
                              "scores from the exact start)")
@@ -356,7 +366,7 @@ def punctuate(
     }
     pop, carried = state.cga_pop, state.search
     if search is not None:
-        search.on_corrected(models, model_effects)
+        search.on_corrected(models, model_effects, operational)
         pop, carried = search.pop, search.chain
         record["search"] = search.record
     new = PALState(state.generation, pop, models, tuple(model_effects), operational,
@@ -375,6 +385,9 @@ def choose_tests(state: PALState, rng: np.random.Generator, cfg: PALConfig) -> n
     if cfg.search_models > 1:  # the best was chosen for being sure: test the model's hope too
         alone = cga.fitness(state.models[0], state.cga_pop, cfg.budget, state.model_effects)
         hopeful = state.cga_pop[int(np.argmax(alone))]
+    explored = (state.search or {}).get("explore") if cfg.explore > 0 else None
+    if explored is not None:  # the best on a plausible table takes that place
+        hopeful = np.array(explored, dtype=np.int64)
     return test_selection.choose(best, pert, state.cga_pop, state.models, row_var, cfg.budget,
                                  state.model_effects, hopeful=hopeful)
 
@@ -455,28 +468,49 @@ class _AnytimeSearch:
         self.walking_evaluations = rec["evaluations"]
         self.walking_best = rec.get("best_score", -1)
 
-    def on_corrected(self, models: np.ndarray, effects: Sequence[Effect]) -> None:
+    def on_corrected(self, models: np.ndarray, effects: Sequence[Effect],
+                     operational: np.ndarray | None = None) -> None:
         """Spend the budget on the corrected model ``models[0]``, from the population ranked
-        on it."""
+        on it; with ``cfg.explore``, a share of it on a draw from the posterior
+        (``models[1]``), from the best found."""
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
         library = shapes.load(self.cfg.shapes)
         sources = () if not library.shapes else library.sources() + [
-            shapes.carried(self.pop[0], self.state.models[0], self.state.model_effects)]
+            shapes.carried(x, self.state.models[0], self.state.model_effects)
+            for x in _distinct([self.pop[0]] + ([] if operational is None else [operational]))]
         rank, _ = _ranking(models, self.pop, self.cfg, effects)
         pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
+        budget = self.cfg.search_evaluations
+        explore = round(budget * self.cfg.explore) if len(models) > 1 else 0
         self.pop, rec, chain = anytime.advance(
-            models[0], pop, self.cfg.search_evaluations, self.rng, self.cfg.budget, effects,
+            models[0], pop, budget - explore, self.rng, self.cfg.budget, effects,
             self.cfg.search, chain=carried, placement=self.cfg.placement_error(),
             models=_pooled_models(models, self.cfg),
             shapes=sources)
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
+        if explore > 0:
+            found, done, _ = anytime.advance(models[1], self.pop[:1], explore, self.rng,
+                                             self.cfg.budget, effects, self.cfg.search,
+                                             placement=self.cfg.placement_error())
+            self.chain["explore"] = found[0].tolist()
+            self.record.update(explore=format_turn_cycle(found[0]),
+                               explore_evaluations=done["evaluations"])
         if self.walking_evaluations is not None:
             self.record["evaluations_while_walking"] = self.walking_evaluations
             self.record["best_score_while_walking"] = self.walking_best
+
+
+def _distinct(turn_cycles: list[np.ndarray]) -> list[np.ndarray]:
+    """The turn cycles without repeats, in order."""
+    out: list[np.ndarray] = []
+    for x in turn_cycles:
+        if not any(np.array_equal(x, y) for y in out):
+            out.append(x)
+    return out
 
 
 def _pooled_models(models: np.ndarray, cfg: PALConfig) -> np.ndarray | None:
@@ -567,7 +601,10 @@ def _search_from_json(doc) -> dict | None:
         return None
     from pac_host.search.local import Chain
 
-    return Chain.from_json(doc).to_json()
+    out = Chain.from_json(doc).to_json()
+    if doc.get("explore") is not None:  # the best on a posterior draw, the next test
+        out["explore"] = np.asarray(doc["explore"], dtype=np.int64).reshape(-1, 2).tolist()
+    return out
 
 
 def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:

@@ -10,7 +10,9 @@
   (:mod:`pac_host.search`) with a budget of coverage evaluations per punctuation, run while the
   robot walks the tests; the experiment's optimum comes from
   :func:`pac_host.search.optimize.optimize`. Each new model's search also starts from the
-  project's library of good sweeps re-expressed on it (:mod:`pac_host.search.shapes`).
+  project's library of good sweeps re-expressed on it (:mod:`pac_host.search.shapes`). A
+  quarter of each budget searches a draw from the corrected model's posterior, whose best is
+  tested after the best (``explore``: Thompson sampling).
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -25,7 +27,8 @@ from pac_host.pal import PAPER
 
 PROFILES: dict[str, dict] = {
     "paper": {**PAPER, "search": "cga"},
-    "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin"},
+    "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin",
+                "explore": 0.25},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

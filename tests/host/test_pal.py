@@ -119,9 +119,10 @@ def test_anytime_pal_carries_its_search_through_a_saved_state():
         cga_population=16, model_population=8, model_generations=2, generations=60,
         interval=20)), search_evaluations=15_000)
     resumed, whole, saved = resumed_and_whole(cfg, 4)
-    assert saved["search"]["x"] is not None
+    assert saved["search"]["x"] is not None and saved["search"]["explore"] is not None
     assert resumed == whole
-    assert all(r["search"]["evaluations"] == 15_000 for r in whole)
+    assert all(r["search"]["evaluations"] + r["search"]["explore_evaluations"] == 15_000
+               for r in whole)
 
 
 def test_step_fitness_needs_observed_paths():

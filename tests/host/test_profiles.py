@@ -78,7 +78,9 @@ def test_anytime_search_in_a_worker_equals_the_search_in_line():
             recs.append(rec)
         out.append((recs, state.cga_pop.tolist(), state.models.tolist()))
     assert out[0] == out[1]
-    assert out[0][0][0]["search"]["evaluations"] == 3000
+    search = out[0][0][0]["search"]
+    assert search["evaluations"] + search["explore_evaluations"] == 3000
+    assert search["explore_evaluations"] == 750  # the default's quarter on a posterior draw
 
 
 def test_anytime_search_spends_its_budget_on_the_model_the_tests_corrected():
@@ -120,6 +122,6 @@ def test_search_while_walking_searches_until_the_robot_has_walked_the_tests():
         state = pal.initial_state(measured_table(), rng, cfg)
         state, rec = pal.punctuate(state, robot, rng, cfg, concurrent=concurrent)
         extra = rec["search"].get("evaluations_while_walking", 0)
-        assert rec["search"]["evaluations"] == 2000
+        assert rec["search"]["evaluations"] + rec["search"]["explore_evaluations"] == 2000
         assert (extra > 2000) == (walking and concurrent), (walking, concurrent, extra)
         assert state.search is not None

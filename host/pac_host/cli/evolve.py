@@ -11,6 +11,7 @@ from pac_host import limits
 from pac_host.cli.link_options import ask, confirm, emulator_options, given, link_options
 from pac_host.cli.options import (
     Bounded,
+    explore_option,
     learning_options,
     placement_option,
     profile_option,
@@ -64,6 +65,7 @@ from pac_host.robot.recovery import describe_counts
 @profile_option()
 @search_evaluations_option()
 @search_models_option()
+@explore_option()
 @shapes_option()
 @click.option("--search-while-walking/--no-search-while-walking", default=None,
               help="Also search while the robot walks the tests, on the model they were chosen "
@@ -73,7 +75,7 @@ from pac_host.robot.recovery import describe_counts
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
                correction, structure, tests, operational, placement, profile, search_evaluations,
-               search_models, shapes, search_while_walking, port, observer_spec, placer,
+               search_models, explore, shapes, search_while_walking, port, observer_spec, placer,
                **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
@@ -115,7 +117,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         learn = profile_pal(profile, search_evaluations, model_generations,
                             dict(model_fitness=model_fitness, correction=correction,
                                  structure=structure, tests=tests, operational=operational,
-                                 placement=placement, search_models=search_models,
+                                 placement=placement, search_models=search_models, explore=explore,
                                  shapes=shapes))
         if placement is None:  # a robot is placed by hand (or seen through a noisy tracker)
             learn = replace(learn, placement="none" if learn.search == "cga" else HAND.to_text())
@@ -135,6 +137,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            correction=learn.correction, structure=learn.structure,
                            tests=learn.tests, operational=learn.operational,
                            placement=learn.placement, search_models=learn.search_models,
+                           explore=learn.explore,
                            shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)

@@ -13,6 +13,7 @@ from pac_host.cli.options import (
     Bounded,
     effect_option,
     effects_module_option,
+    explore_option,
     learning_options,
     load_with_effects,
     placement_option,
@@ -84,6 +85,7 @@ from pac_host.plots import experiment_plots
 @profile_option()
 @search_evaluations_option()
 @search_models_option()
+@explore_option()
 @shapes_option()
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 @scheduler_options
@@ -92,7 +94,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
                    optimum_runs, optimum_generations, optimum_evaluations, best_known,
                    model_generations, correction, structure, tests, operational, placement, profile,
-                   search_evaluations, search_models, shapes, resume, scheduler,
+                   search_evaluations, search_models, explore, shapes, resume, scheduler,
                    connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
@@ -122,7 +124,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         pal=profile_pal(profile, search_evaluations, model_generations,
                         dict(model_fitness=model_fitness, correction=correction,
                              structure=structure, tests=tests, operational=operational,
-                             placement=placement, search_models=search_models,
+                             placement=placement, search_models=search_models, explore=explore,
                              shapes=shapes),
                         budget=check_budget(budget)),
     )

@@ -128,6 +128,17 @@ def search_models_option():
              "pinned (an anytime profile; each table costs an evaluation).")
 
 
+def explore_option():
+    return click.option(
+        "--explore", type=click.FloatRange(0.0, 1.0, max_open=True), default=None,
+        metavar="SHARE",
+        help="Spend this share of each punctuation's search budget on a draw from the "
+             "corrected model's posterior, from the search's best, and test the best found "
+             "there after the best (Thompson sampling: rows no test has pinned get tested when "
+             "a plausible table favours them; an anytime profile with --correction fit) "
+             "[default: the profile's]")
+
+
 def shapes_option(default: str | None = None):
     return click.option(
         "--shapes", "shapes", default=default, show_default=default is not None,
