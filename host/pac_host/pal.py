@@ -147,8 +147,9 @@ class PALConfig:
     # file), re-expressed on each new model as starting points (pac_host.search.shapes), with
     # the search's own best from the model before
     shapes: str = "none"
-    # With an anytime search and posterior draws (the "fit" correction): this share of the
-    # budget searches one draw from the corrected model's posterior, from the search's best,
+    # With an anytime search and a model population: this share of the budget searches
+    # model 1 (with the "fit" correction a draw from the corrected model's posterior; with
+    # "ga", e.g. a counts-only observer, the model GA's second best), from the search's best,
     # and the best found there takes the test after the best (Thompson sampling): a sweep over
     # rows no test has pinned gets tested when a plausible table favours it
     explore: float = 0.0
@@ -469,17 +470,19 @@ class _AnytimeSearch:
         self.walking_best = rec.get("best_score", -1)
 
     def on_corrected(self, models: np.ndarray, effects: Sequence[Effect],
-                     operational: np.ndarray | None = None) -> None:
+                     operational: np.ndarray) -> None:
         """Spend the budget on the corrected model ``models[0]``, from the population ranked
-        on it; with ``cfg.explore``, a share of it on a draw from the posterior
-        (``models[1]``), from the best found."""
+        on it, its sources the library and the search's best and the ``operational`` turn
+        cycle from the model before (one the same as another adds no start:
+        :func:`pac_host.search.shapes.starts`); with ``cfg.explore``, a share of it on
+        ``models[1]`` (a draw from the posterior), from the best found."""
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
         library = shapes.load(self.cfg.shapes)
         sources = () if not library.shapes else library.sources() + [
             shapes.carried(x, self.state.models[0], self.state.model_effects)
-            for x in _distinct([self.pop[0]] + ([] if operational is None else [operational]))]
+            for x in (self.pop[0], operational)]
         rank, _ = _ranking(models, self.pop, self.cfg, effects)
         pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
@@ -502,15 +505,6 @@ class _AnytimeSearch:
         if self.walking_evaluations is not None:
             self.record["evaluations_while_walking"] = self.walking_evaluations
             self.record["best_score_while_walking"] = self.walking_best
-
-
-def _distinct(turn_cycles: list[np.ndarray]) -> list[np.ndarray]:
-    """The turn cycles without repeats, in order."""
-    out: list[np.ndarray] = []
-    for x in turn_cycles:
-        if not any(np.array_equal(x, y) for y in out):
-            out.append(x)
-    return out
 
 
 def _pooled_models(models: np.ndarray, cfg: PALConfig) -> np.ndarray | None:

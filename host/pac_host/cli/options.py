@@ -135,7 +135,7 @@ def explore_option():
         help="Spend this share of each punctuation's search budget on a draw from the "
              "corrected model's posterior, from the search's best, and test the best found "
              "there after the best (Thompson sampling: rows no test has pinned get tested when "
-             "a plausible table favours them; an anytime profile with --correction fit) "
+             "a plausible table favours them; an anytime profile) "
              "[default: the profile's]")
 
 

@@ -15,7 +15,7 @@ True
 >>> from pac_host.model import shifted_table
 >>> from pac_host.search.local import Objective
 >>> objective = Objective(shifted_table().rows)
->>> x, score = start(objective, lib.without("shifted").sources())
+>>> x, score = starts(objective, lib.without("shifted").sources())[0]
 >>> objective.fitness(score) >= 40, objective.evaluations < 1000
 (True, True)
 """
@@ -156,7 +156,8 @@ def _proposals(sources: Sequence[Source], target: np.ndarray, budget: int, beam:
 def starts(objective, sources: Sequence[Source]) -> list[tuple[np.ndarray, int]]:
     """Each source's best proposal on the objective's model and its search score, best first
     (one start per source: sweeps of different shapes lead to different basins), scored
-    through the objective (the evaluations count); empty without sources."""
+    through the objective (the evaluations count); empty without sources. A source that
+    proposes only what an earlier one did gives no start of its own."""
     pop, owner = _proposals(sources, objective.loop_table(), objective.budget)
     if not len(pop):
         return []
@@ -168,10 +169,3 @@ def starts(objective, sources: Sequence[Source]) -> list[tuple[np.ndarray, int]]
             best[o] = i
     order = sorted(best.values(), key=lambda i: (-int(scores[i]), i))
     return [(pop[i].copy(), int(scores[i])) for i in order]
-
-
-def start(objective, sources: Sequence[Source]) -> tuple[np.ndarray, int] | None:
-    """The best of the sources' proposals on the objective's model, scored through it (the
-    evaluations count), and its search score; None without sources."""
-    found = starts(objective, sources)
-    return found[0] if found else None
