@@ -42,7 +42,7 @@ def distinct_candidates(cga_pop: np.ndarray, n: int) -> np.ndarray:
             out.append(tc)
             if len(out) == n:
                 break
-    return np.array(out).reshape((len(out),) + cga_pop.shape[1:])
+    return np.array(out, dtype=cga_pop.dtype).reshape((len(out),) + cga_pop.shape[1:])
 
 
 def disagreement(models: np.ndarray, candidates: np.ndarray, budget: int, effects=()
@@ -93,7 +93,7 @@ def choose(
     keep = keep[[cands[k].tobytes() != best.tobytes() for k in keep]]
     cands = cands[keep]
     if len(cands) == 0:
-        return np.concatenate([best[None], perturbed])
+        return np.concatenate([best[None], perturbed[:n_tests]])
     spread = disagreement(models, cands, budget, effects)
     unknown = row_uncertainty(cands, row_var, budget)
     order = np.lexsort((-unknown, -spread))  # most disagreement first, then least evidence

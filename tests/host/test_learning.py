@@ -91,6 +91,18 @@ def test_informative_tests_pick_where_the_models_disagree():
     assert len(tests) == 3
 
 
+def test_with_no_candidate_but_the_best_there_are_still_three_tests():
+    best = np.array([[12, 30], [0, 0]])
+    models = np.broadcast_to(measured_table().rows, (4, 32, 3)).copy()
+    var = models.var(axis=0).sum(axis=-1)
+    same = np.stack([best, best])  # perturbations that changed nothing, a converged population
+    hopeful = np.array([[3, 5], [0, 0]])  # which takes one of the two places
+    tests = test_selection.choose(best, same, np.stack([best] * 4), models, var, 200,
+                                  hopeful=hopeful)
+    assert len(tests) == 3 and np.array_equal(tests[1], hopeful)
+    assert len(test_selection.choose(best, same, np.stack([best] * 4), models, var, 200)) == 3
+
+
 def test_operational_takes_any_tested_turn_cycle_that_did_better():
     class Robot:
         def run_tests(self, tests):
