@@ -50,6 +50,37 @@ def test_a_turn_shift_is_a_relabelling_the_re_expression_undoes():
     assert _fitness(measured_table(), src)[0] < 20  # the same genes are another walk
 
 
+@pytest.mark.parametrize("target", ["shifted", "asymmetric", "library_on_changed"])
+def test_the_compiled_re_expression_proposes_what_numpy_does(target, monkeypatch):
+    """The numba beam step against the numpy reference, every library sweep re-expressed on
+    three tables: the same turn cycles in the same order, errors equal but for rounding."""
+    from pac_host import coverage_jit
+    from pac_host.search import retarget as rt
+
+    if not coverage_jit.AVAILABLE:
+        pytest.skip("numba is not installed")
+    table = shapes.table_of(target)
+    moves = loop_table(table.rows, table.effects)
+    for genes, source in LIB.sources():
+        compiled = retarget(genes, source, moves)
+        monkeypatch.setattr(coverage_jit, "AVAILABLE", False)
+        reference = retarget(genes, source, moves)
+        monkeypatch.setattr(coverage_jit, "AVAILABLE", True)
+        assert len(compiled) == rt.BEAM and np.array_equal(compiled, reference)
+    rng = np.random.default_rng(0)  # one step with ties in errors and in moves
+    ends = np.exp(1j * rng.normal(size=(40, 2))) * rng.random((40, 2))
+    ends[:, 1] /= np.abs(ends[:, 1])
+    errors = np.sort(rng.random(40))
+    errors[4] = errors[3]
+    m = moves[1:, 1:].reshape(-1, 2)[:300]
+    m[7] = m[5]
+    walk = np.array([1 + 1j, np.exp(0.3j)])
+    a = rt.beam_step(ends, errors, m, walk, 0.5, 64)
+    b = rt._compiled_step()(ends, errors, m, walk, 0.5, 64)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    assert np.allclose(a[2], b[2], rtol=0, atol=1e-9) and np.allclose(a[3], b[3])
+
+
 def test_the_path_carries_over_where_the_genes_do_not():
     """The library's sweeps on robots whose tables differ from theirs: the best re-expressed
     path scores well above the best of the same genes, on each (before any climb: 44 against
@@ -128,12 +159,12 @@ def test_a_carried_chain_takes_a_sweep_only_if_it_beats_its_own_point():
     sources = LIB.without("shifted").sources()
     poor = parse_turn_cycle("12:14,3:10")
     chain = Chain(poor, starts=1)
-    objective = Objective(table.rows, limit=1000)
+    objective = Objective(table.rows, limit=10_000)  # the proposals' evaluations and a little
     chain.run(objective, np.random.default_rng(1), 50, shapes=sources)
     assert objective.fitness(objective.best_search_score) >= 40  # the sweep took its place
     good = parse_turn_cycle("29:7,21:11,17:3,7:21,3:1,21:13,12:4,7:1,2:8")
     chain = Chain(good, starts=1)
-    objective = Objective(table.rows, limit=1000)
+    objective = Objective(table.rows, limit=10_000)
     chain.run(objective, np.random.default_rng(1), 50, shapes=sources)
     assert objective.fitness(objective.best_search_score) == 46  # its own point kept
 

@@ -16,7 +16,7 @@ True
 >>> from pac_host.search.local import Objective
 >>> objective = Objective(shifted_table().rows)
 >>> x, score = starts(objective, lib.without("shifted").sources())[0]
->>> objective.fitness(score) >= 40, objective.evaluations < 1000
+>>> objective.fitness(score) >= 40, objective.evaluations < 10_000
 (True, True)
 """
 
