@@ -8,6 +8,9 @@
 - ``library``: chains started from the library of good sweeps re-expressed on the model
   against chains without it, at LIBRARY_EVALUATIONS each, on robots none of the library was
   found on (the built-in robots less their own sweeps, and robots of other seeds and effects).
+- ``reexpress``: the library's sweeps re-expressed on each built-in robot (less its own sweeps)
+  at beams REEXPRESS_BEAMS, each source's best proposal climbed by a chain of
+  REEXPRESS_EVALUATIONS: what a wider beam gives the starts.
 - ``experiment``: the 30-seed, three-method experiment with the default profile (anytime PAL,
   its search budget per punctuation) and --jobs 2: wall time (target <= 20 minutes) and the
   oracle's final fitness against the best known (target: >= 95% on at least 27 of 30 seeds).
@@ -107,6 +110,49 @@ def library_runs(seeds: int, evaluations: int, jobs: int = 2) -> dict:
             "mean_gain": round(float(np.mean(gain)), 2)}
 
 
+REEXPRESS_BEAMS = (50, 500)
+REEXPRESS_EVALUATIONS = 100_000
+
+
+def _reexpress_run(args) -> list[float]:
+    """Each source's best proposal on the robot, climbed by one chain of ``evaluations``."""
+    table, robot, beam, rep, evaluations = args
+    from pac_host.search.local import Chain, Objective
+
+    first = Objective(table.rows, 200, table.effects)
+    pop, owner = shapes._proposals(shapes.load("builtin").without(robot).sources(),
+                                   first.loop_table(), 200, beam)
+    scores = first(pop)
+    best: dict[int, int] = {}
+    for i, o in enumerate(owner.tolist()):
+        if o not in best or scores[i] > scores[best[o]]:
+            best[o] = i
+    out = []
+    for k, i in enumerate(sorted(best.values(), key=lambda i: -int(scores[i]))):
+        objective = Objective(table.rows, 200, table.effects, limit=evaluations)
+        Chain(pop[i].copy(), starts=1).run(objective, np.random.default_rng(1000 * rep + k), 50)
+        out.append(objective.fitness(objective.best_search_score))
+    return out
+
+
+def reexpress_runs(reps: int = 3, evaluations: int = REEXPRESS_EVALUATIONS, jobs: int = 2,
+                   beams=REEXPRESS_BEAMS) -> dict:
+    """The library's sweeps re-expressed on the built-in robots (less their own sweeps) at
+    each beam: every source's best proposal climbed by a chain of ``evaluations``, ``reps``
+    times; the mean climbed fitness and the mean over reps of the best source's."""
+    targets = [("shifted", shifted_table())] + [(n, robots.build(n)) for n in robots.ROBOTS]
+    out: dict = {}
+    with ProcessPoolExecutor(jobs) as pool:
+        for name, table in targets:
+            for beam in beams:
+                runs = np.array(list(pool.map(_reexpress_run, [(table, name, beam, r, evaluations)
+                                                               for r in range(reps)])))
+                out.setdefault(name, {})[f"beam_{beam}"] = {
+                    "climbed_mean": round(float(runs.mean()), 2),
+                    "best_source_mean": round(float(runs.max(axis=1).mean()), 2)}
+    return {"evaluations": evaluations, "reps": reps, "robots": out}
+
+
 # The search budget a punctuation at which the 30-seed, three-method experiment fits its 20
 # minutes on an idle 2-core machine (19 min 30 s measured; the default profile's 400,000 took
 # 24 minutes): docs/search.md
@@ -148,6 +194,8 @@ def run(quick: bool = False) -> dict:
         for name, table in (("shifted", shifted_table()), ("measured", measured_table()))}}
     res["library"] = library_runs(2 if quick else 4,
                                   100_000 if quick else LIBRARY_EVALUATIONS)
+    res["reexpress"] = reexpress_runs(1 if quick else 3, 20_000 if quick else
+                                      REEXPRESS_EVALUATIONS)
     shifted = res["optimize"]["shifted"]
     res["experiment"] = experiment(quick, shifted["best_known"])
     exp = res["experiment"]
@@ -165,5 +213,7 @@ def run(quick: bool = False) -> dict:
 
 
 if __name__ == "__main__":  # the library comparison alone: python bench/bench_search.py library
+    if sys.argv[1:] == ["reexpress"]:  # python bench/bench_search.py reexpress
+        print(json.dumps(reexpress_runs(), indent=1))
     if sys.argv[1:] == ["library"]:
         print(json.dumps(library_runs(4, LIBRARY_EVALUATIONS, jobs=1), indent=1))
