@@ -33,7 +33,7 @@ from pac_host import coverage_jit
 from pac_host.search.kicks import WEIGHT
 from pac_host.search.neighbours import _VALUES
 
-BEAM = 50  # partial walks kept at each gene; every one of the last is a proposal
+BEAM = 500  # partial walks kept at each gene; every one of the last is a proposal
 
 
 def retarget(genes: np.ndarray, source: np.ndarray, target: np.ndarray, beam: int = BEAM,
