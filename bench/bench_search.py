@@ -120,17 +120,11 @@ def _reexpress_run(args) -> list[float]:
     from pac_host.search.local import Chain, Objective
 
     first = Objective(table.rows, 200, table.effects)
-    pop, owner = shapes._proposals(shapes.load("builtin").without(robot).sources(),
-                                   first.loop_table(), 200, beam)
-    scores = first(pop)
-    best: dict[int, int] = {}
-    for i, o in enumerate(owner.tolist()):
-        if o not in best or scores[i] > scores[best[o]]:
-            best[o] = i
+    found = shapes.starts(first, shapes.load("builtin").without(robot).sources(), beam)
     out = []
-    for k, i in enumerate(sorted(best.values(), key=lambda i: -int(scores[i]))):
+    for k, (x, _) in enumerate(found):
         objective = Objective(table.rows, 200, table.effects, limit=evaluations)
-        Chain(pop[i].copy(), starts=1).run(objective, np.random.default_rng(1000 * rep + k), 50)
+        Chain(x, starts=1).run(objective, np.random.default_rng(1000 * rep + k), 50)
         out.append(objective.fitness(objective.best_search_score))
     return out
 

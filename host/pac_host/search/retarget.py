@@ -177,8 +177,8 @@ def _compiled_step():
             angles, order = by_angle if by_angle is not None else _by_angle(moves)
             err, flat = kernel(ends, errors, moves, angles, order, walk, float(weight),
                                int(beam))
-            order = np.lexsort((flat, err))
-            err, flat = err[order], flat[order]
+            rank = np.lexsort((flat, err))
+            err, flat = err[rank], flat[rank]
             b, v = np.divmod(flat, len(moves))
             new = np.stack([ends[b, 0] + ends[b, 1] * moves[v, 0], ends[b, 1] * moves[v, 1]],
                            axis=-1)

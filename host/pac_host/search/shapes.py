@@ -153,12 +153,14 @@ def _proposals(sources: Sequence[Source], target: np.ndarray, budget: int, beam:
     return pop[first], owner[first]
 
 
-def starts(objective, sources: Sequence[Source]) -> list[tuple[np.ndarray, int]]:
+def starts(objective, sources: Sequence[Source], beam: int = BEAM
+           ) -> list[tuple[np.ndarray, int]]:
     """Each source's best proposal on the objective's model and its search score, best first
     (one start per source: sweeps of different shapes lead to different basins), scored
     through the objective (the evaluations count); empty without sources. A source that
-    proposes only what an earlier one did gives no start of its own."""
-    pop, owner = _proposals(sources, objective.loop_table(), objective.budget)
+    proposes only what an earlier one did gives no start of its own. ``beam``: of the
+    re-expression (:func:`pac_host.search.retarget.retarget`)."""
+    pop, owner = _proposals(sources, objective.loop_table(), objective.budget, beam)
     if not len(pop):
         return []
     scores = objective(pop)
