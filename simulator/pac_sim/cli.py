@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
-import threading
+import time
 from pathlib import Path
 
 import click
@@ -245,12 +245,15 @@ def main(link_path: str | None, **opts: object) -> None:
         host, port = sim.tracker.address
         click.echo(f"pac-sim: tracker on {host}:{port}")
     sys.stdout.flush()
-    done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    # The handler only flips a flag: it runs in the main thread between any two bytecodes, so
+    # one that took a lock (threading.Event.set) could deadlock on a lock that thread holds.
+    terminated: list[int] = []
+    signal.signal(signal.SIGTERM, lambda signum, _frame: terminated.append(signum))
     sim.start()
     seen = 0
     try:
-        while not done.wait(0.1) and sim.error is None:
+        while not terminated and sim.error is None:
+            time.sleep(0.1)
             seen = _report_downloads(sim.stamp, seen)
     except KeyboardInterrupt:
         pass
