@@ -14,6 +14,8 @@ it started. This module corrects the whole table from every step observed so far
    (offsets ~ N(0, tau^2) per component) is fitted to the data (empirical Bayes: the spread of
    the offsets of rows with strong evidence), so on a robot the structure explains, unused rows
    stay at the structure, and on a robot with independent row errors they stay uncertain.
+   Where the offsets are smooth across gait cycles of similar turn strength (an effect outside
+   the library), the smooth prior of :mod:`pac_host.row_prior` carries them to unused rows.
 
 The result is a Gaussian posterior over the table: a mean (the CGA's model), a covariance per
 component, and the evidence (observed steps) of each row. Samples of it are a population of
@@ -37,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pac_host import row_prior
 from pac_host.coverage import expand
 from pac_host.diagnose import Run, split_runs
 from pac_host.diagnose.pipeline import select_effects
@@ -282,8 +285,16 @@ def _ridge(design: np.ndarray, resid: np.ndarray, evidence: np.ndarray, prior: n
             tau[c] = max(np.sqrt(max(spread, 0.0)), TAU_FLOOR * prior[c])
         else:
             tau[c] = prior[c]
+        xty = design.T @ resid[:, c]
+        smooth = None
+        if strong.sum() >= MIN_ROWS_FOR_PRIOR:  # offsets shared by similar gait cycles?
+            smooth = row_prior.smooth_prior(gram, xty, sigma[c], prior[c],
+                                            floor=TAU_FLOOR * prior[c])
+        if smooth is not None:
+            means[:, c], covs[c] = row_prior.posterior(smooth, gram, xty, sigma[c])
+            continue
         prec = gram / sigma[c] ** 2 + np.eye(N_IDS) / tau[c] ** 2
         covs[c] = np.linalg.inv(prec)
         covs[c] = 0.5 * (covs[c] + covs[c].T)
-        means[:, c] = covs[c] @ (design.T @ resid[:, c]) / sigma[c] ** 2
+        means[:, c] = covs[c] @ xty / sigma[c] ** 2
     return sigma, tau, means, covs
