@@ -142,9 +142,9 @@ def test_a_chain_restarts_from_the_next_sources_sweep_before_any_cga_start():
     chain.run(objective, np.random.default_rng(0), 2, shapes=sources)  # restart after 2 kicks
     taken = chain.starts
     assert 3 <= taken <= len(sources)  # restarted, each time from the library
-    assert [s for _, s in chain.queue] == [s for _, s in first[taken:]]
-    assert all(np.array_equal(g, h) for (g, _), (h, _) in zip(chain.queue, first[taken:],
-                                                              strict=True))
+    assert [s for _, s, _ in chain.queue] == [s for _, s in first[taken:]]
+    assert all(np.array_equal(g, h) for (g, _, _), (h, _) in zip(chain.queue, first[taken:],
+                                                                 strict=True))
     again = Chain.from_json(json.loads(json.dumps(chain.to_json())))
     assert again.to_json() == chain.to_json()
     # carried on on the same model it goes on through the queue, not re-expressing it
@@ -152,6 +152,26 @@ def test_a_chain_restarts_from_the_next_sources_sweep_before_any_cga_start():
     objective.limit = before + 60_000
     chain.run(objective, np.random.default_rng(1), 2, shapes=sources)
     assert chain.starts > taken and len(chain.queue) == len(first) - chain.starts
+
+
+def test_a_chain_carried_to_a_new_model_starts_from_sources_it_has_not_tried():
+    # after each punctuation the model changes a little; restarting from the library's best
+    # source every time would climb the same basin over and over
+    table = shifted_table()
+    sources = LIB.without("shifted").sources()
+    keys = [shapes.source_key(src) for src in sources]
+    assert len(set(keys)) == len(keys)
+    chain = Chain()
+    chain.run(Objective(table.rows, limit=40_000), np.random.default_rng(0), 2, shapes=sources)
+    first = list(chain.taken)
+    assert len(first) >= 2 and set(first) <= set(keys)
+    moved = table.rows + np.random.default_rng(1).normal(scale=0.05, size=table.rows.shape)
+    chain.run(Objective(moved, limit=40_000), np.random.default_rng(1), 2, shapes=sources)
+    assert chain.taken[: len(first)] == first and len(chain.taken) > len(first)
+    assert len(set(chain.taken)) == len(chain.taken)  # no source started from twice
+    assert not {k for _, _, k in chain.queue} & set(chain.taken)
+    again = Chain.from_json(json.loads(json.dumps(chain.to_json())))
+    assert again.to_json() == chain.to_json()
 
 
 def test_a_carried_chain_takes_a_sweep_only_if_it_beats_its_own_point():

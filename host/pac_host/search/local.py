@@ -29,8 +29,7 @@ from pac_host.search.neighbours import (
     slots,
     value_indices,
 )
-from pac_host.search.shapes import Source
-from pac_host.search.shapes import starts as shape_starts
+from pac_host.search.shapes import Source, source_key, starts_by_source
 
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 # What the search scores are (Objective.fingerprint): a chain carried from a run whose scores
@@ -251,9 +250,13 @@ class Chain:
     model: str | None = None
     starts: int = 0  # starting points so far, a given one included (picks the loop divisor)
     shaped: str | None = None  # the model the shapes were last re-expressed on
-    # the starts the shapes gave on that model and not yet taken, (turn cycle, search score)
-    # best first, one a source: a restart there takes the next before any CGA start
+    # the starts the shapes gave on that model and not yet taken, (turn cycle, search score,
+    # source key) best first, one a source: a restart there takes the next before any CGA start
     queue: list = field(default_factory=list)
+    # the sources started from so far, on any model (shapes.source_key): a changed model
+    # re-expresses only the others, so a run's restarts go through the whole library once
+    # instead of climbing the same best source again after every punctuation
+    taken: list = field(default_factory=list)
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2, sample: float = SAMPLE,
@@ -263,17 +266,21 @@ class Chain:
         ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
         the first start on a model is the best of them re-expressed on it, if that scores
         higher than the chain's own point, and each restart on that model takes the next
-        source's best re-expressed sweep, while there is one, before any CGA start."""
+        source's best re-expressed sweep, while there is one, before any CGA start. A source
+        once started from is not re-expressed again (:attr:`taken`)."""
         model = objective.fingerprint()
         try:
             while True:
                 # re-expressed once per model, where a start is to be chosen
                 if shapes and self.shaped != model and (self.x is None or self.model != model):
-                    self.queue = shape_starts(objective, shapes)
+                    keys = [source_key(src) for src in shapes]
+                    fresh = [i for i, k in enumerate(keys) if k not in self.taken]
+                    self.queue = [(x, score, keys[fresh[o]]) for x, score, o in
+                                  starts_by_source(objective, [shapes[i] for i in fresh])]
                     self.shaped = model
                 queued = bool(self.queue) and self.shaped == model
                 if self.x is None and queued:
-                    (x, score), self.starts = self.queue.pop(0), self.starts + 1
+                    (x, score), self.starts = self._take(), self.starts + 1
                     self.x, self.stale, self.model = x, 0, None
                 elif self.x is None:
                     div = LOOP_DIVISORS[self.starts % len(LOOP_DIVISORS)]
@@ -285,7 +292,7 @@ class Chain:
                 else:
                     x, score = self.x, int(objective(self.x[None])[0])
                     if queued and self.queue[0][1] > score:
-                        (x, score), self.stale = self.queue.pop(0), 0
+                        (x, score), self.stale = self._take(), 0
                         self.x = x
                 if self.model != model:
                     x, score = climb(x, score, objective, rng, sample)
@@ -302,11 +309,19 @@ class Chain:
         except Exhausted:
             pass
 
+    def _take(self) -> tuple[np.ndarray, int]:
+        """The queue's next start, its source marked as taken."""
+        x, score, key = self.queue.pop(0)
+        if key is not None:
+            self.taken.append(key)
+        return x, score
+
     def to_json(self) -> dict:
         return {"x": None if self.x is None else self.x.tolist(), "stale": self.stale,
                 "score": self.score, "model": self.model, "starts": self.starts,
                 "shaped": self.shaped,
-                "queue": [[g.tolist(), s] for g, s in self.queue]}
+                "queue": [[g.tolist(), s, k] for g, s, k in self.queue],
+                "taken": list(self.taken)}
 
     @classmethod
     def from_json(cls, doc: dict) -> Chain:
@@ -315,7 +330,10 @@ class Chain:
                    None if score is None else int(score), None if model is None else str(model),
                    int(doc.get("starts", 0)),
                    None if doc.get("shaped") is None else str(doc["shaped"]),
-                   [(np.array(g, dtype=np.int64), int(s)) for g, s in doc.get("queue") or []])
+                   # (a queue saved before sources were remembered has no keys)
+                   [(np.array(q[0], dtype=np.int64), int(q[1]), q[2] if len(q) > 2 else None)
+                    for q in doc.get("queue") or []],
+                   [str(k) for k in doc.get("taken") or []])
 
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,

@@ -23,6 +23,7 @@ True
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -153,6 +154,16 @@ def _proposals(sources: Sequence[Source], target: np.ndarray, budget: int, beam:
     return pop[first], owner[first]
 
 
+def source_key(source: Source) -> str:
+    """A short name for a source that stays the same while its sweep and table do (a chain
+    remembers by it which sources it has started from, across models)."""
+    genes, moves = source
+    h = hashlib.sha1(np.ascontiguousarray(genes, dtype=np.int64).tobytes())
+    moves = np.ascontiguousarray(moves)
+    h.update(moves.dtype.str.encode() + moves.tobytes())
+    return h.hexdigest()[:16]
+
+
 def starts(objective, sources: Sequence[Source], beam: int = BEAM
            ) -> list[tuple[np.ndarray, int]]:
     """Each source's best proposal on the objective's model and its search score, best first
@@ -160,6 +171,12 @@ def starts(objective, sources: Sequence[Source], beam: int = BEAM
     through the objective (the evaluations count); empty without sources. A source that
     proposes only what an earlier one did gives no start of its own. ``beam``: of the
     re-expression (:func:`pac_host.search.retarget.retarget`)."""
+    return [(x, score) for x, score, _ in starts_by_source(objective, sources, beam)]
+
+
+def starts_by_source(objective, sources: Sequence[Source], beam: int = BEAM
+                     ) -> list[tuple[np.ndarray, int, int]]:
+    """:func:`starts`, each with the index of the source that proposed it."""
     pop, owner = _proposals(sources, objective.loop_table(), objective.budget, beam)
     if not len(pop):
         return []
@@ -169,5 +186,5 @@ def starts(objective, sources: Sequence[Source], beam: int = BEAM
     for i, o in enumerate(owner.tolist()):
         if o not in best or scores[i] > scores[best[o]]:
             best[o] = i
-    order = sorted(best.values(), key=lambda i: (-int(scores[i]), i))
-    return [(pop[i].copy(), int(scores[i])) for i in order]
+    order = sorted(best, key=lambda o: (-int(scores[best[o]]), best[o]))
+    return [(pop[best[o]].copy(), int(scores[best[o]]), o) for o in order]
