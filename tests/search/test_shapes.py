@@ -275,3 +275,12 @@ def test_evolve_takes_the_library_by_default_and_keeps_it_in_its_config(tmp_path
     bad = CliRunner().invoke(main, ["evolve", "--out", str(tmp_path / "bad"), "--shapes",
                                     str(tmp_path / "missing.json")])
     assert bad.exit_code == 2 and "cannot read shapes file" in bad.output
+
+
+def test_a_chain_saved_before_sources_were_remembered_still_resumes():
+    doc = {"x": None, "stale": 0, "queue": [[[[12, 3], [3, 1]], 700]]}
+    chain = Chain.from_json(doc)
+    assert chain.taken == [] and chain.queue[0][1:] == (700, None)
+    assert Chain.from_json(chain.to_json()).to_json() == chain.to_json()
+    with pytest.raises(TypeError):  # an entry without its score (a state then says malformed)
+        Chain.from_json({"queue": [[[[12, 3]]]]})

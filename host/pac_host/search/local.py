@@ -330,10 +330,13 @@ class Chain:
                    None if score is None else int(score), None if model is None else str(model),
                    int(doc.get("starts", 0)),
                    None if doc.get("shaped") is None else str(doc["shaped"]),
-                   # (a queue saved before sources were remembered has no keys)
-                   [(np.array(q[0], dtype=np.int64), int(q[1]), q[2] if len(q) > 2 else None)
-                    for q in doc.get("queue") or []],
+                   [_queued(*q) for q in doc.get("queue") or []],
                    [str(k) for k in doc.get("taken") or []])
+
+
+def _queued(genes, score, key=None) -> tuple[np.ndarray, int, str | None]:
+    """A queue entry of a chain's JSON (one saved before sources were remembered has no key)."""
+    return np.array(genes, dtype=np.int64), int(score), None if key is None else str(key)
 
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
