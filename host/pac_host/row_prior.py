@@ -46,12 +46,18 @@ def kernel(a: float, b: float, length: float, rho: float) -> np.ndarray:
     return a * a * np.eye(N_IDS) + b * b * shared
 
 
+def _whitened(K: np.ndarray, gram: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """K's Cholesky factor L and M = I + L' X'X L / sigma^2, the posterior in whitened offsets
+    (both the evidence and the posterior are read from them)."""
+    L = np.linalg.cholesky(K)
+    return L, np.eye(N_IDS) + L.T @ gram @ L / sigma**2
+
+
 def log_evidence(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float) -> float:
     """The log marginal likelihood of the residuals, up to terms that do not depend on ``K``:
     residuals ``r = X o + e``, ``o ~ N(0, K)``, ``e ~ N(0, sigma^2)``; ``gram`` = X'X and
     ``xty`` = X'r. Computed in the 32 offsets (Woodbury), never in the steps."""
-    L = np.linalg.cholesky(K)
-    M = np.eye(N_IDS) + L.T @ gram @ L / sigma**2
+    L, M = _whitened(K, gram, sigma)
     C = np.linalg.cholesky(M)
     z = np.linalg.solve(C, L.T @ xty)
     return 0.5 * float(z @ z) / sigma**4 - float(np.log(np.diag(C)).sum())
@@ -60,8 +66,7 @@ def log_evidence(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float)
 def posterior(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float
               ) -> tuple[np.ndarray, np.ndarray]:
     """Posterior mean and covariance of the offsets under the prior ``K``."""
-    L = np.linalg.cholesky(K)
-    M = np.eye(N_IDS) + L.T @ gram @ L / sigma**2
+    L, M = _whitened(K, gram, sigma)
     cov = L @ np.linalg.solve(M, L.T)
     cov = 0.5 * (cov + cov.T)
     return cov @ xty / sigma**2, cov
