@@ -22,7 +22,8 @@ what the time a real robot walks its tests gives the search (``pac-host evolve -
 Methods ``pooled`` and ``walking_pooled`` are ``default`` and ``walking`` with each turn cycle
 scored on the model and three draws from its posterior (``--search-models 4``), the model's
 own best tested beside the pooled best.
-Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
+``--search-evaluations N`` gives every method N search evaluations a punctuation (what more
+host time buys). Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
 """
 
@@ -80,15 +81,18 @@ def actual_robots() -> dict:
 
 def measure(robot_names, methods, seeds: int, out_root: Path, generations: int = 1000,
             optimum_runs: int = 4, optimum_evaluations: int = 10_000_000, jobs: int = 1,
-            recombination=("partial", "oracle")) -> dict:
+            recombination=("partial", "oracle"), search_evaluations: int | None = None) -> dict:
     """Each method on each robot; the best known on a robot comes from ``optimum_runs``
     chains of ``pac-host optimize`` (whatever the method, so all are measured against the
-    same, strongest, search)."""
+    same, strongest, search). ``search_evaluations`` replaces every method's search budget a
+    punctuation (what more host time buys)."""
     all_robots = actual_robots()
     out: dict = {}
     for rname in robot_names:
         for mname in methods:
             pcfg = METHODS[mname]
+            if search_evaluations is not None:
+                pcfg = replace(pcfg, search_evaluations=search_evaluations)
             d = out_root / rname / mname
             if pcfg.shapes != "none":  # measured as on a robot nobody has searched: the
                 # library without the sweeps found on this one
@@ -161,10 +165,13 @@ if __name__ == "__main__":
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--generations", type=int, default=1000,
                     help="CGA generations a run (a punctuation every 40)")
+    ap.add_argument("--search-evaluations", type=int, default=None,
+                    help="every method's search evaluations a punctuation (default: the method's)")
     ap.add_argument("--out", default="out/bench-learning")
     a = ap.parse_args()
     res = measure(a.robots.split(","), a.methods.split(","), a.seeds, Path(a.out),
                   generations=a.generations, optimum_runs=a.optimum_runs,
                   optimum_evaluations=a.optimum_evaluations,
-                  jobs=a.jobs, recombination=tuple(a.recombination.split(",")))
+                  jobs=a.jobs, recombination=tuple(a.recombination.split(",")),
+                  search_evaluations=a.search_evaluations)
     print(json.dumps({"results": res, "targets": _targets(res, a.seeds)}, indent=1))

@@ -21,6 +21,7 @@ Usage: ``python bench/run.py --only search`` (about 50 minutes on an idle 2-core
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -206,8 +207,17 @@ def run(quick: bool = False) -> dict:
     return res
 
 
-if __name__ == "__main__":  # the library comparison alone: python bench/bench_search.py library
-    if sys.argv[1:] == ["reexpress"]:  # python bench/bench_search.py reexpress
-        print(json.dumps(reexpress_runs(), indent=1))
-    if sys.argv[1:] == ["library"]:
-        print(json.dumps(library_runs(4, LIBRARY_EVALUATIONS, jobs=1), indent=1))
+if __name__ == "__main__":  # one part alone, e.g. python bench/bench_search.py library
+    ap = argparse.ArgumentParser(description="one part of the search benchmark")
+    ap.add_argument("part", choices=("reexpress", "library"))
+    ap.add_argument("--evaluations", type=int, default=LIBRARY_EVALUATIONS,
+                    help="library: evaluations a chain (a PAL run's search: 10400000)")
+    ap.add_argument("--seeds", type=int, default=4, help="library: seeds a target and arm")
+    ap.add_argument("--jobs", type=int, default=None, help="processes (reexpress 2, library 1)")
+    a = ap.parse_args()
+    if a.evaluations < 1 or a.seeds < 1 or (a.jobs is not None and a.jobs < 1):
+        ap.error("--evaluations, --seeds and --jobs must be positive")
+    if a.part == "reexpress":
+        print(json.dumps(reexpress_runs(jobs=a.jobs or 2), indent=1))
+    else:
+        print(json.dumps(library_runs(a.seeds, a.evaluations, jobs=a.jobs or 1), indent=1))
