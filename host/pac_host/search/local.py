@@ -232,9 +232,11 @@ class Chain:
     """Iterated local search with restarts that can stop when its objective's budget runs out
     and be carried on later, on the same model or a changed one (anytime PAL's search between
     punctuations). It keeps its current local optimum ``x`` (None: start from a restart) and the
-    kicks ``stale`` since the score last rose; after ``patience`` such kicks it restarts from
-    the best of a fresh short CGA run (the CGA finds good regions cheaply; the local search then
-    gets much further from there than the CGA does). The best ever scored is the objective's.
+    kicks ``stale`` since the score last rose; after ``patience`` such kicks it restarts: from
+    the best start the library of sweeps gave on this model (:meth:`run`), climbed afresh with
+    other kicks, or without one from the best of a fresh short CGA run (the CGA finds good
+    regions cheaply; the local search then gets much further from there than the CGA does).
+    The best ever scored is the objective's.
 
     >>> from pac_host.model import shifted_table
     >>> objective = Objective(shifted_table().rows, limit=20_000)
@@ -251,12 +253,16 @@ class Chain:
     starts: int = 0  # starting points so far, a given one included (picks the loop divisor)
     shaped: str | None = None  # the model the shapes were last re-expressed on
     # the starts the shapes gave on that model and not yet taken, (turn cycle, search score,
-    # source key) best first, one a source: a restart there takes the next before any CGA start
+    # source key) best first, one a source: the next is taken when the chain needs a start on
+    # that model and has no origin there, or when it beats the chain's point carried there
     queue: list = field(default_factory=list)
     # the sources started from so far, on any model (shapes.source_key): a changed model
     # re-expresses only the others, so a run's restarts go through the whole library once
     # instead of climbing the same best source again after every punctuation
     taken: list = field(default_factory=list)
+    # the best start the sources gave on a model, (turn cycle, search score, model): a restart
+    # on that model climbs it again, with other kicks, rather than a weaker source's start
+    origin: tuple | None = None
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2, sample: float = SAMPLE,
@@ -265,9 +271,13 @@ class Chain:
         re-scores and climbs its local optimum if the objective's model has changed. With
         ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
         the first start on a model is the best of them re-expressed on it, if that scores
-        higher than the chain's own point, and each restart on that model takes the next
-        source's best re-expressed sweep, while there is one, before any CGA start. A source
-        once started from is not re-expressed again (:attr:`taken`)."""
+        higher than the chain's own point, and each restart on that model climbs that start
+        again (:attr:`origin`): climbs from one start end in different basins, and the best
+        start's are the likeliest to end high (measured with one chain of a PAL run's 10.4
+        million evaluations, seeds 0-15: asymmetric 41.6 against 40.6 when restarts took the
+        next source's start, outside_library 40.75 against 39.5; docs/learning.md). A source
+        once started from is not re-expressed again (:attr:`taken`), so a changed model's
+        first start comes from another."""
         model = objective.fingerprint()
         try:
             while True:
@@ -279,8 +289,12 @@ class Chain:
                                   starts_by_source(objective, [shapes[i] for i in fresh])]
                     self.shaped = model
                 queued = bool(self.queue) and self.shaped == model
-                if self.x is None and queued:
-                    (x, score), self.starts = self._take(), self.starts + 1
+                if self.x is None and self.origin is not None and self.origin[2] == model:
+                    x, score = self.origin[0].copy(), self.origin[1]
+                    self.starts += 1
+                    self.x, self.stale, self.model = x, 0, None
+                elif self.x is None and queued:
+                    (x, score), self.starts = self._take(model), self.starts + 1
                     self.x, self.stale, self.model = x, 0, None
                 elif self.x is None:
                     div = LOOP_DIVISORS[self.starts % len(LOOP_DIVISORS)]
@@ -292,7 +306,7 @@ class Chain:
                 else:
                     x, score = self.x, int(objective(self.x[None])[0])
                     if queued and self.queue[0][1] > score:
-                        (x, score), self.stale = self._take(), 0
+                        (x, score), self.stale = self._take(model), 0
                         self.x = x
                 if self.model != model:
                     x, score = climb(x, score, objective, rng, sample)
@@ -309,11 +323,14 @@ class Chain:
         except Exhausted:
             pass
 
-    def _take(self) -> tuple[np.ndarray, int]:
-        """The queue's next start, its source marked as taken."""
+    def _take(self, model: str) -> tuple[np.ndarray, int]:
+        """The queue's next start, its source marked as taken; the first taken on ``model`` is
+        the origin of the restarts there."""
         x, score, key = self.queue.pop(0)
         if key is not None:
             self.taken.append(key)
+        if self.origin is None or self.origin[2] != model:
+            self.origin = (x.copy(), score, model)
         return x, score
 
     def to_json(self) -> dict:
@@ -321,7 +338,9 @@ class Chain:
                 "score": self.score, "model": self.model, "starts": self.starts,
                 "shaped": self.shaped,
                 "queue": [[g.tolist(), s, k] for g, s, k in self.queue],
-                "taken": list(self.taken)}
+                "taken": list(self.taken),
+                "origin": None if self.origin is None else [
+                    self.origin[0].tolist(), self.origin[1], self.origin[2]]}
 
     @classmethod
     def from_json(cls, doc: dict) -> Chain:
@@ -331,7 +350,13 @@ class Chain:
                    int(doc.get("starts", 0)),
                    None if doc.get("shaped") is None else str(doc["shaped"]),
                    [_queued(*q) for q in doc.get("queue") or []],
-                   [str(k) for k in doc.get("taken") or []])
+                   [str(k) for k in doc.get("taken") or []],
+                   None if doc.get("origin") is None else _origin(*doc["origin"]))
+
+
+def _origin(genes, score, model) -> tuple[np.ndarray, int, str]:
+    """A chain's origin from its JSON (one saved before origins has none)."""
+    return np.array(genes, dtype=np.int64), int(score), str(model)
 
 
 def _queued(genes, score, key=None) -> tuple[np.ndarray, int, str | None]:
