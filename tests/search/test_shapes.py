@@ -173,11 +173,24 @@ def test_a_chain_carried_to_a_new_model_starts_from_sources_it_has_not_tried():
     chain.run(Objective(table.rows, limit=40_000), np.random.default_rng(0), 2, shapes=sources)
     first = list(chain.taken)
     assert len(first) == 1 and set(first) <= set(keys)  # its restarts climb that start again
+    origin = chain.origin[0].copy()
     moved = table.rows + np.random.default_rng(1).normal(scale=0.05, size=table.rows.shape)
-    chain.run(Objective(moved, limit=40_000), np.random.default_rng(1), 2, shapes=sources)
-    assert chain.taken[: len(first)] == first and len(chain.taken) > len(first)
+    objective = Objective(moved, limit=40_000)
+    starts = chain.starts
+    chain.run(objective, np.random.default_rng(1), 2, shapes=sources)
+    assert chain.starts > starts  # restarted on the new model
+    assert chain.taken[: len(first)] == first
     assert len(set(chain.taken)) == len(chain.taken)  # no source started from twice
     assert not {k for _, _, k in chain.queue} & set(chain.taken)
+    # a restart there climbs the best start so far, re-scored, unless a fresh source starts
+    # higher: the origin is on the new model, and it is the old one or a fresh source's start
+    scored = Objective(moved)  # the same model, without the spent budget
+    assert chain.origin[2] == objective.fingerprint() == scored.fingerprint()
+    assert chain.origin[1] == int(scored(chain.origin[0][None])[0])
+    if len(chain.taken) == len(first):
+        assert np.array_equal(chain.origin[0], origin)
+    else:
+        assert chain.origin[1] > int(scored(origin[None])[0])
     again = Chain.from_json(json.loads(json.dumps(chain.to_json())))
     assert again.to_json() == chain.to_json()
 

@@ -260,8 +260,9 @@ class Chain:
     # re-expresses only the others, so a run's restarts go through the whole library once
     # instead of climbing the same best source again after every punctuation
     taken: list = field(default_factory=list)
-    # the best start the sources gave on a model, (turn cycle, search score, model): a restart
-    # on that model climbs it again, with other kicks, rather than a weaker source's start
+    # the best start the sources have given, (turn cycle, search score, the model it was last
+    # scored on): a restart climbs it again, with other kicks, re-scored on a changed model,
+    # unless a source not yet taken starts higher there
     origin: tuple | None = None
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
@@ -271,13 +272,13 @@ class Chain:
         re-scores and climbs its local optimum if the objective's model has changed. With
         ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
         the first start on a model is the best of them re-expressed on it, if that scores
-        higher than the chain's own point, and each restart on that model climbs that start
-        again (:attr:`origin`): climbs from one start end in different basins, and the best
-        start's are the likeliest to end high (measured with one chain of a PAL run's 10.4
-        million evaluations, seeds 0-15: asymmetric 41.6 against 40.6 when restarts took the
-        next source's start, outside_library 40.75 against 39.5; docs/learning.md). A source
-        once started from is not re-expressed again (:attr:`taken`), so a changed model's
-        first start comes from another."""
+        higher than the chain's own point, and each restart climbs the best start so far again
+        (:attr:`origin`, re-scored on a changed model), unless a source not yet taken starts
+        higher: climbs from one start end in different basins, and the best start's are the
+        likeliest to end high (measured with one chain of a PAL run's 10.4 million
+        evaluations, seeds 0-15: asymmetric 41.6 against 40.6 when restarts took the next
+        source's start, outside_library 40.75 against 39.5; docs/learning.md). A source once
+        started from is not re-expressed again (:attr:`taken`)."""
         model = objective.fingerprint()
         try:
             while True:
@@ -289,8 +290,14 @@ class Chain:
                                   starts_by_source(objective, [shapes[i] for i in fresh])]
                     self.shaped = model
                 queued = bool(self.queue) and self.shaped == model
-                if self.x is None and self.origin is not None and self.origin[2] == model:
-                    x, score = self.origin[0].copy(), self.origin[1]
+                if self.x is None and self.origin is not None:
+                    if self.origin[2] != model:  # the best start so far, on this model
+                        genes = self.origin[0]
+                        self.origin = (genes, int(objective(genes[None])[0]), model)
+                    if queued and self.queue[0][1] > self.origin[1]:
+                        x, score = self._take(model)
+                    else:
+                        x, score = self.origin[0].copy(), self.origin[1]
                     self.starts += 1
                     self.x, self.stale, self.model = x, 0, None
                 elif self.x is None and queued:
@@ -324,12 +331,12 @@ class Chain:
             pass
 
     def _take(self, model: str) -> tuple[np.ndarray, int]:
-        """The queue's next start, its source marked as taken; the first taken on ``model`` is
-        the origin of the restarts there."""
+        """The queue's next start, its source marked as taken; the origin of later restarts
+        if it is the first start on ``model`` or beats the origin there."""
         x, score, key = self.queue.pop(0)
         if key is not None:
             self.taken.append(key)
-        if self.origin is None or self.origin[2] != model:
+        if self.origin is None or self.origin[2] != model or score > self.origin[1]:
             self.origin = (x.copy(), score, model)
         return x, score
 
