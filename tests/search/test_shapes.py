@@ -305,3 +305,5 @@ def test_a_chain_saved_before_sources_were_remembered_still_resumes():
     assert Chain.from_json(chain.to_json()).to_json() == chain.to_json()
     with pytest.raises(TypeError):  # an entry without its score (a state then says malformed)
         Chain.from_json({"queue": [[[[12, 3]]]]})
+    with pytest.raises(TypeError):  # an origin without the model it was scored on
+        Chain.from_json({"origin": [[[12, 3]], 700]})

@@ -233,8 +233,8 @@ class Chain:
     and be carried on later, on the same model or a changed one (anytime PAL's search between
     punctuations). It keeps its current local optimum ``x`` (None: start from a restart) and the
     kicks ``stale`` since the score last rose; after ``patience`` such kicks it restarts: from
-    the best start the library of sweeps gave on this model (:meth:`run`), climbed afresh with
-    other kicks, or without one from the best of a fresh short CGA run (the CGA finds good
+    the best start the library of sweeps has given (:meth:`run`), climbed afresh with other
+    kicks, or without a library from the best of a fresh short CGA run (the CGA finds good
     regions cheaply; the local search then gets much further from there than the CGA does).
     The best ever scored is the objective's.
 
