@@ -253,8 +253,8 @@ class Chain:
     starts: int = 0  # starting points so far, a given one included (picks the loop divisor)
     shaped: str | None = None  # the model the shapes were last re-expressed on
     # the starts the shapes gave on that model and not yet taken, (turn cycle, search score,
-    # source key) best first, one a source: the next is taken when the chain needs a start on
-    # that model and has no origin there, or when it beats the chain's point carried there
+    # source key) best first, one a source: the next is taken when it starts higher than the
+    # origin (or there is none) at a restart, or beats the chain's point carried to that model
     queue: list = field(default_factory=list)
     # the sources started from so far, on any model (shapes.source_key): a changed model
     # re-expresses only the others, so a run's restarts go through the whole library once
@@ -290,22 +290,8 @@ class Chain:
                                   starts_by_source(objective, [shapes[i] for i in fresh])]
                     self.shaped = model
                 queued = bool(self.queue) and self.shaped == model
-                if self.x is None and self.origin is not None:
-                    if self.origin[2] != model:  # the best start so far, on this model
-                        genes = self.origin[0]
-                        self.origin = (genes, int(objective(genes[None])[0]), model)
-                    if queued and self.queue[0][1] > self.origin[1]:
-                        x, score = self._take(model)
-                    else:
-                        x, score = self.origin[0].copy(), self.origin[1]
-                    self.starts += 1
-                    self.x, self.stale, self.model = x, 0, None
-                elif self.x is None and queued:
-                    (x, score), self.starts = self._take(model), self.starts + 1
-                    self.x, self.stale, self.model = x, 0, None
-                elif self.x is None:
-                    div = LOOP_DIVISORS[self.starts % len(LOOP_DIVISORS)]
-                    x, score = cga_start(objective, rng, divisor=div)
+                if self.x is None:
+                    x, score = self._restart(objective, rng, model, queued)
                     self.starts += 1
                     self.x, self.stale, self.model = x, 0, None  # kept if the climb is cut
                 elif self.model == model:
@@ -329,6 +315,20 @@ class Chain:
                 self.x, self.model = None, None
         except Exhausted:
             pass
+
+    def _restart(self, objective: Objective, rng: np.random.Generator, model: str,
+                 queued: bool) -> tuple[np.ndarray, int]:
+        """Where a restart starts: the origin (re-scored on a changed model) unless a source
+        not yet taken starts higher, else the queue's next start, else a short CGA run."""
+        if self.origin is not None:
+            if self.origin[2] != model:  # the best start so far, on this model
+                genes = self.origin[0]
+                self.origin = (genes, int(objective(genes[None])[0]), model)
+            if not (queued and self.queue[0][1] > self.origin[1]):
+                return self.origin[0].copy(), self.origin[1]
+        if queued:
+            return self._take(model)
+        return cga_start(objective, rng, divisor=LOOP_DIVISORS[self.starts % len(LOOP_DIVISORS)])
 
     def _take(self, model: str) -> tuple[np.ndarray, int]:
         """The queue's next start, its source marked as taken; the origin of later restarts
