@@ -10,6 +10,12 @@ whose move brings the walk closest to where the source's walk is at the end of t
 keeping the ``beam`` closest partial walks. The loop's last gene then also closes the pass where
 the source's does, so a repeating sweep repeats on the target too.
 
+Each gait cycle of the re-expression costs :data:`LENGTH_COST` cm of that closeness: a path
+can be walked in slow gait cycles or fast ones, and a sweep repeats its loop 200 / L times in
+the budget, so of two expressions about as close the shorter loop covers more. Without the
+cost the beam matched the shape in slow, long loops (the best start on asymmetric, the
+library less its own sweeps: 29, a 72-cycle loop; with it 43, a 44-cycle loop; docs/search.md).
+
 Only the table's moves are used (its table effects applied; sequence effects and world drift
 left out): it proposes starting points, and every proposal is scored by the coverage simulator.
 
@@ -34,18 +40,24 @@ from pac_host.search.kicks import WEIGHT
 from pac_host.search.neighbours import _VALUES
 
 BEAM = 500  # partial walks kept at each gene; every one of the last is a proposal
+# cm of a walk's distance from the source's that one gait cycle more of the loop weighs as much
+# as (measured, the best start on the four robots of robots.py: any of 0.5-4 gives the same
+# starts within a block, 8 and more lose the shape)
+LENGTH_COST = 1.0
 
 
 def retarget(genes: np.ndarray, source: np.ndarray, target: np.ndarray, beam: int = BEAM,
-             weight: float = WEIGHT) -> np.ndarray:
+             weight: float = WEIGHT, length_cost: float = LENGTH_COST) -> np.ndarray:
     """Turn cycles (B, G, 2) on the ``target`` table that walk the path ``genes`` (G, 2) walks on
     the ``source`` table, closest first (B <= ``beam``). ``source`` and ``target`` are the
     tables' moves repeated 0..63 times (:func:`pac_host.search.kicks.loop_table`). Each gene is
     matched by the walk's end after it, from the start, so errors do not pile up along the loop;
-    an empty gene stays empty. Equal errors keep the earlier (partial walk, value) first."""
+    each gait cycle adds ``length_cost`` to the error; an empty gene stays empty. Equal errors
+    keep the earlier (partial walk, value) first."""
     genes = np.asarray(genes, dtype=np.int64)
     values = _VALUES[_VALUES[:, 1] > 0]
     moves = target[values[:, 0], values[:, 1]]  # (V, 2): displacement, rotation
+    cost = length_cost * values[:, 1].astype(np.float64)  # (V,)
     walk = np.array([0j, 1 + 0j])  # the source's walk so far
     ends = walk[None].copy()  # (B, 2): each partial walk's end on the target
     chosen = np.zeros((1, 0, 2), dtype=np.int64)
@@ -59,21 +71,25 @@ def retarget(genes: np.ndarray, source: np.ndarray, target: np.ndarray, beam: in
         step = source[gid, reps]
         walk = np.array([walk[0] + walk[1] * step[0], walk[1] * step[1]])
         if step_fn is None:
-            b, v, errors, ends = beam_step(ends, errors, moves, walk, weight, beam)
+            b, v, errors, ends = beam_step(ends, errors, moves, walk, weight, beam, cost)
         else:
-            b, v, errors, ends = step_fn(ends, errors, moves, walk, weight, beam, by_angle)
+            b, v, errors, ends = step_fn(ends, errors, moves, walk, weight, beam, by_angle, cost)
         chosen = np.concatenate([chosen[b], values[v][:, None]], axis=1)
     return chosen
 
 
 def beam_step(ends: np.ndarray, errors: np.ndarray, moves: np.ndarray, walk: np.ndarray,
-              weight: float, beam: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+              weight: float, beam: int, cost: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One gene of the beam search, in numpy (the reference of the compiled step): every
     partial walk (B) extended by every move (V), the ``beam`` closest to the source's walk
-    kept, ordered by error, then by (walk, move). Returns their walks, moves, errors and ends."""
+    (each move adding its ``cost`` (V,), none if None) kept, ordered by error, then by (walk,
+    move). Returns their walks, moves, errors and ends."""
+    cost = np.zeros(len(moves)) if cost is None else cost
     disp = ends[:, None, 0] + ends[:, None, 1] * moves[None, :, 0]  # (B, V)
     rot = ends[:, None, 1] * moves[None, :, 1]
-    err = (errors[:, None] + np.abs(disp - walk[0]) + weight * np.abs(rot - walk[1])).ravel()
+    err = (errors[:, None] + np.abs(disp - walk[0]) + weight * np.abs(rot - walk[1])
+           + cost[None, :]).ravel()
     k = min(beam, err.size)
     flat = np.argpartition(err, k - 1)[:k]
     cut = err[flat].max()
@@ -83,14 +99,15 @@ def beam_step(ends: np.ndarray, errors: np.ndarray, moves: np.ndarray, walk: np.
     return b, v, err[flat], np.stack([disp[b, v], rot[b, v]], axis=-1)
 
 
-def _beam_heap(ends, errors, moves, angles, order, walk, weight, beam):
+def _beam_heap(ends, errors, moves, angles, order, walk, weight, beam, cost):
     """The ``beam`` smallest (error, flat index) of every (partial walk, move), unordered:
     :func:`beam_step`'s arithmetic one pair at a time into a bounded max-heap, compiled by
     :func:`_compiled_step`. ``order`` sorts the moves by the ``angles`` of their rotations;
     each walk looks at the moves outward from the rotation it needs and stops on a side once
     the rotation's error alone keeps the rest out (the rotation weighs ``weight`` times its
     distance: a few moves of the 2,016 are looked at), and the walks come closest first, so
-    once one cannot get in, none after it can."""
+    once one cannot get in, none after it can (a move's ``cost`` is never negative, so both
+    bounds hold with it)."""
     n_b, n_v = ends.shape[0], moves.shape[0]
     k = min(beam, n_b * n_v)
     heap_e = np.empty(k)
@@ -124,7 +141,7 @@ def _beam_heap(ends, errors, moves, angles, order, walk, weight, beam):
                 dx, dy = m0.real - q.real, m0.imag - q.imag
                 rx, ry = m1.real - r.real, m1.imag - r.imag
                 e = base + scale * (np.sqrt(dx * dx + dy * dy)
-                                    + weight * np.sqrt(rx * rx + ry * ry))
+                                    + weight * np.sqrt(rx * rx + ry * ry)) + cost[v]
                 i = b * n_v + v
                 if size < k:  # sift up
                     h = size
@@ -173,10 +190,11 @@ def _compiled_step():
 
         kernel = numba.njit(cache=True, nogil=True)(_beam_heap)
 
-        def step(ends, errors, moves, walk, weight, beam, by_angle=None):
+        def step(ends, errors, moves, walk, weight, beam, by_angle=None, cost=None):
             angles, order = by_angle if by_angle is not None else _by_angle(moves)
+            cost = np.zeros(len(moves)) if cost is None else np.asarray(cost, dtype=np.float64)
             err, flat = kernel(ends, errors, moves, angles, order, walk, float(weight),
-                               int(beam))
+                               int(beam), cost)
             rank = np.lexsort((flat, err))
             err, flat = err[rank], flat[rank]
             b, v = np.divmod(flat, len(moves))
