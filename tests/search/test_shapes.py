@@ -75,12 +75,13 @@ def test_the_compiled_re_expression_proposes_what_numpy_does(target, monkeypatch
     m = moves[1:, 1:].reshape(-1, 2)[:300]
     m[7] = m[5]
     walk = np.array([1 + 1j, np.exp(0.3j)])
-    for cost in (None, rng.random(len(m)) * 3):  # without and with a cost per move
+    for cost in (np.zeros(len(m)), rng.random(len(m)) * 3):  # without and with a cost per move
         a = rt.beam_step(ends, errors, m, walk, 0.5, 64, cost)
-        b = rt._compiled_step()(ends, errors, m, walk, 0.5, 64, cost=cost)
+        b = rt._compiled_step()(ends, errors, m, walk, 0.5, 64, cost)
         assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
         assert np.allclose(a[2], b[2], rtol=0, atol=1e-9) and np.allclose(a[3], b[3])
-    assert not np.array_equal(a[1], rt.beam_step(ends, errors, m, walk, 0.5, 64)[1])
+    assert not np.array_equal(a[1], rt.beam_step(ends, errors, m, walk, 0.5, 64,
+                                                 np.zeros(len(m)))[1])
 
 
 def test_the_path_carries_over_where_the_genes_do_not():
@@ -114,9 +115,8 @@ def test_a_gait_cycle_of_the_re_expression_costs_path_error(name, monkeypatch):
         return int(_fitness(table, x)[0]), int(x[:, 1].sum())
 
     costed = best_start()
-    monkeypatch.setattr(rt, "LENGTH_COST", 0.0)
-    monkeypatch.setattr(rt.retarget, "__defaults__",
-                        rt.retarget.__defaults__[:-1] + (rt.LENGTH_COST,))
+    # shapes.starts re-expresses with retarget's defaults: the same starts without the cost
+    monkeypatch.setattr(rt.retarget, "__defaults__", rt.retarget.__defaults__[:-1] + (0.0,))
     free = best_start()
     assert costed[0] >= free[0] + 3, (costed, free)
     assert costed[1] < free[1], (costed, free)

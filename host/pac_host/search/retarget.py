@@ -73,19 +73,18 @@ def retarget(genes: np.ndarray, source: np.ndarray, target: np.ndarray, beam: in
         if step_fn is None:
             b, v, errors, ends = beam_step(ends, errors, moves, walk, weight, beam, cost)
         else:
-            b, v, errors, ends = step_fn(ends, errors, moves, walk, weight, beam, by_angle, cost)
+            b, v, errors, ends = step_fn(ends, errors, moves, walk, weight, beam, cost, by_angle)
         chosen = np.concatenate([chosen[b], values[v][:, None]], axis=1)
     return chosen
 
 
 def beam_step(ends: np.ndarray, errors: np.ndarray, moves: np.ndarray, walk: np.ndarray,
-              weight: float, beam: int, cost: np.ndarray | None = None
+              weight: float, beam: int, cost: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One gene of the beam search, in numpy (the reference of the compiled step): every
     partial walk (B) extended by every move (V), the ``beam`` closest to the source's walk
-    (each move adding its ``cost`` (V,), none if None) kept, ordered by error, then by (walk,
-    move). Returns their walks, moves, errors and ends."""
-    cost = np.zeros(len(moves)) if cost is None else cost
+    (each move adding its ``cost`` (V,)) kept, ordered by error, then by (walk, move). Returns
+    their walks, moves, errors and ends."""
     disp = ends[:, None, 0] + ends[:, None, 1] * moves[None, :, 0]  # (B, V)
     rot = ends[:, None, 1] * moves[None, :, 1]
     err = (errors[:, None] + np.abs(disp - walk[0]) + weight * np.abs(rot - walk[1])
@@ -190,9 +189,8 @@ def _compiled_step():
 
         kernel = numba.njit(cache=True, nogil=True)(_beam_heap)
 
-        def step(ends, errors, moves, walk, weight, beam, by_angle=None, cost=None):
+        def step(ends, errors, moves, walk, weight, beam, cost, by_angle=None):
             angles, order = by_angle if by_angle is not None else _by_angle(moves)
-            cost = np.zeros(len(moves)) if cost is None else np.asarray(cost, dtype=np.float64)
             err, flat = kernel(ends, errors, moves, angles, order, walk, float(weight),
                                int(beam), cost)
             rank = np.lexsort((flat, err))
