@@ -221,6 +221,30 @@ def test_a_chain_carried_to_a_new_model_starts_from_sources_it_has_not_tried():
     assert again.to_json() == chain.to_json()
 
 
+def test_a_new_model_re_expresses_the_sources_already_taken_too():
+    # a source taken early was expressed on an early, wrong model; re-expressed on a later
+    # one it may start higher than the origin there (docs/learning.md, noisy_rows)
+    table = shifted_table()
+    sources = LIB.without("shifted").sources()
+    keys = [shapes.source_key(src) for src in sources]
+    best = shapes.starts_by_source(Objective(table.rows), sources)[0]
+    poor = parse_turn_cycle("12:14,3:10")
+    chain = Chain(taken=list(keys), origin=(poor, 0, "an earlier model"), starts=1)
+    objective = Objective(table.rows, limit=10_000)
+    chain.run(objective, np.random.default_rng(0), 2, shapes=sources)
+    assert chain.queue == []  # every source taken: none is queued again
+    assert np.array_equal(chain.origin[0], best[0]) and chain.origin[1] == best[1]
+    assert chain.origin[2] == objective.fingerprint()
+    # an origin that starts higher than every re-expression stays, re-scored on the model
+    good = parse_turn_cycle("29:7,21:11,17:3,7:21,3:1,21:13,12:4,7:1,2:8")
+    chain = Chain(taken=list(keys), origin=(good, 0, "an earlier model"), starts=1)
+    objective = Objective(table.rows, limit=10_000)
+    chain.run(objective, np.random.default_rng(0), 2, shapes=sources)
+    scored = int(Objective(table.rows)(good[None])[0])
+    assert scored > best[1]
+    assert np.array_equal(chain.origin[0], good) and chain.origin[1] == scored
+
+
 def test_a_carried_chain_takes_a_sweep_only_if_it_beats_its_own_point():
     table = shifted_table()
     sources = LIB.without("shifted").sources()
