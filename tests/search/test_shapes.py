@@ -100,24 +100,21 @@ def test_the_path_carries_over_where_the_genes_do_not():
 
 
 @pytest.mark.parametrize("name", robots.ROBOTS)
-def test_a_gait_cycle_of_the_re_expression_costs_path_error(name, monkeypatch):
+def test_a_gait_cycle_of_the_re_expression_costs_path_error(name):
     """A sweep repeats its loop budget / L times, so of two expressions of a path about as
     close the shorter loop covers more: with the length cost the best start the library (less
     the robot's own sweeps) gives is a shorter loop and scores higher, on each robot of our own
     making (measured: 43 against 29 on asymmetric, 40 against 23 on outside_library)."""
-    from pac_host.search import retarget as rt
-
     table = robots.build(name)
     sources = LIB.without(name).sources()
 
-    def best_start():
-        (x, score), *_ = shapes.starts(Objective(table.rows, 200, table.effects), sources)
+    def best_start(**cost):
+        (x, score), *_ = shapes.starts(Objective(table.rows, 200, table.effects), sources,
+                                       **cost)
         return int(_fitness(table, x)[0]), int(x[:, 1].sum())
 
-    costed = best_start()
-    # shapes.starts re-expresses with retarget's defaults: the same starts without the cost
-    monkeypatch.setattr(rt.retarget, "__defaults__", rt.retarget.__defaults__[:-1] + (0.0,))
-    free = best_start()
+    costed = best_start()  # the default cost
+    free = best_start(length_cost=0.0)
     assert costed[0] >= free[0] + 3, (costed, free)
     assert costed[1] < free[1], (costed, free)
 

@@ -37,7 +37,7 @@ from pac_host.model.effects import Effect
 from pac_host.model.table import BUILTIN, GaitTable, load_table
 from pac_host.search.kicks import loop_table
 from pac_host.search.neighbours import canonical
-from pac_host.search.retarget import BEAM, retarget
+from pac_host.search.retarget import BEAM, LENGTH_COST, retarget
 
 FORMAT = "pac-shapes/1"
 CHOICES = ("builtin", "none")  # or a file
@@ -135,18 +135,19 @@ def carried(genes: np.ndarray, rows: np.ndarray, effects: Sequence[Effect] = ())
 
 
 def proposals(sources: Sequence[Source], target: np.ndarray, budget: int,
-              beam: int = BEAM) -> np.ndarray:
+              beam: int = BEAM, length_cost: float = LENGTH_COST) -> np.ndarray:
     """Every source re-expressed on the ``target`` table's moves, ``beam`` proposals each,
-    canonical and without repeats (N, 9, 2)."""
-    return _proposals(sources, target, budget, beam)[0]
+    canonical and without repeats (N, 9, 2). ``beam``, ``length_cost``: of the re-expression
+    (:func:`pac_host.search.retarget.retarget`)."""
+    return _proposals(sources, target, budget, beam, length_cost)[0]
 
 
-def _proposals(sources: Sequence[Source], target: np.ndarray, budget: int, beam: int = BEAM
-               ) -> tuple[np.ndarray, np.ndarray]:
+def _proposals(sources: Sequence[Source], target: np.ndarray, budget: int, beam: int = BEAM,
+               length_cost: float = LENGTH_COST) -> tuple[np.ndarray, np.ndarray]:
     """:func:`proposals` and, for each, the index of the first source that proposed it."""
     if not sources:
         return np.zeros((0, 9, 2), dtype=np.int64), np.zeros(0, dtype=np.int64)
-    parts = [retarget(g, m, target, beam) for g, m in sources]
+    parts = [retarget(g, m, target, beam, length_cost=length_cost) for g, m in sources]
     pop = canonical(np.concatenate(parts), budget)
     owner = np.repeat(np.arange(len(parts)), [len(p) for p in parts])
     _, first = np.unique(pop.reshape(len(pop), -1), axis=0, return_index=True)
@@ -164,20 +165,22 @@ def source_key(source: Source) -> str:
     return h.hexdigest()[:16]
 
 
-def starts(objective, sources: Sequence[Source], beam: int = BEAM
-           ) -> list[tuple[np.ndarray, int]]:
+def starts(objective, sources: Sequence[Source], beam: int = BEAM,
+           length_cost: float = LENGTH_COST) -> list[tuple[np.ndarray, int]]:
     """Each source's best proposal on the objective's model and its search score, best first
     (one start per source: sweeps of different shapes lead to different basins), scored
     through the objective (the evaluations count); empty without sources. A source that
-    proposes only what an earlier one did gives no start of its own. ``beam``: of the
-    re-expression (:func:`pac_host.search.retarget.retarget`)."""
-    return [(x, score) for x, score, _ in starts_by_source(objective, sources, beam)]
+    proposes only what an earlier one did gives no start of its own. ``beam``,
+    ``length_cost``: of the re-expression (:func:`pac_host.search.retarget.retarget`)."""
+    return [(x, score) for x, score, _ in starts_by_source(objective, sources, beam,
+                                                           length_cost)]
 
 
-def starts_by_source(objective, sources: Sequence[Source], beam: int = BEAM
-                     ) -> list[tuple[np.ndarray, int, int]]:
+def starts_by_source(objective, sources: Sequence[Source], beam: int = BEAM,
+                     length_cost: float = LENGTH_COST) -> list[tuple[np.ndarray, int, int]]:
     """:func:`starts`, each with the index of the source that proposed it."""
-    pop, owner = _proposals(sources, objective.loop_table(), objective.budget, beam)
+    pop, owner = _proposals(sources, objective.loop_table(), objective.budget, beam,
+                            length_cost)
     if not len(pop):
         return []
     scores = objective(pop)
