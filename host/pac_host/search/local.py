@@ -263,7 +263,7 @@ class Chain:
     taken: list = field(default_factory=list)
     # the best start the sources have given, (turn cycle, search score, the model it was last
     # scored on): a restart climbs it again, with other kicks, re-scored on a changed model,
-    # unless a source not yet taken starts higher there
+    # unless a source, taken or not, starts higher there
     origin: tuple | None = None
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
