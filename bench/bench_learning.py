@@ -81,11 +81,13 @@ def actual_robots() -> dict:
 
 def measure(robot_names, methods, seeds: int, out_root: Path, generations: int = 1000,
             optimum_runs: int = 4, optimum_evaluations: int = 10_000_000, jobs: int = 1,
-            recombination=("partial", "oracle"), search_evaluations: int | None = None) -> dict:
+            recombination=("partial", "oracle"), search_evaluations: int | None = None,
+            search_chains: int | None = None) -> dict:
     """Each method on each robot; the best known on a robot comes from ``optimum_runs``
     chains of ``pac-host optimize`` (whatever the method, so all are measured against the
     same, strongest, search). ``search_evaluations`` replaces every method's search budget a
-    punctuation (what more host time buys)."""
+    punctuation and ``search_chains`` every anytime method's chains (what more host time
+    buys)."""
     all_robots = actual_robots()
     out: dict = {}
     for rname in robot_names:
@@ -93,6 +95,8 @@ def measure(robot_names, methods, seeds: int, out_root: Path, generations: int =
             pcfg = METHODS[mname]
             if search_evaluations is not None:
                 pcfg = replace(pcfg, search_evaluations=search_evaluations)
+            if search_chains is not None and pcfg.search != "cga":
+                pcfg = replace(pcfg, search_chains=search_chains)
             d = out_root / rname / mname
             if pcfg.shapes != "none":  # measured as on a robot nobody has searched: the
                 # library without the sweeps found on this one
@@ -167,11 +171,13 @@ if __name__ == "__main__":
                     help="CGA generations a run (a punctuation every 40)")
     ap.add_argument("--search-evaluations", type=int, default=None,
                     help="every method's search evaluations a punctuation (default: the method's)")
+    ap.add_argument("--search-chains", type=int, default=None,
+                    help="every anytime method's search chains a punctuation (default: 1)")
     ap.add_argument("--out", default="out/bench-learning")
     a = ap.parse_args()
     res = measure(a.robots.split(","), a.methods.split(","), a.seeds, Path(a.out),
                   generations=a.generations, optimum_runs=a.optimum_runs,
                   optimum_evaluations=a.optimum_evaluations,
                   jobs=a.jobs, recombination=tuple(a.recombination.split(",")),
-                  search_evaluations=a.search_evaluations)
+                  search_evaluations=a.search_evaluations, search_chains=a.search_chains)
     print(json.dumps({"results": res, "targets": _targets(res, a.seeds)}, indent=1))

@@ -72,6 +72,7 @@ class EvolveConfig:
     operational: str = pal.PALConfig.operational
     placement: str = pal.PALConfig.placement
     search_models: int = pal.PALConfig.search_models
+    search_chains: int = pal.PALConfig.search_chains  # runs saved before it: 1
     shapes: str = pal.PALConfig.shapes  # runs saved before the library: none
     explore: float = pal.PALConfig.explore  # runs saved before it: 0
 
@@ -101,7 +102,8 @@ class EvolveConfig:
             model_population=self.model_population, budget=self.budget,
             correction=self.correction, structure=self.structure, tests=self.tests,
             operational=self.operational, placement=self.placement, search=self.search,
-            search_models=self.search_models, shapes=self.shapes, explore=self.explore,
+            search_models=self.search_models, search_chains=self.search_chains,
+            shapes=self.shapes, explore=self.explore,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

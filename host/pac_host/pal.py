@@ -143,6 +143,12 @@ class PALConfig:
     # population (the model, then draws from its posterior), pooled, so a turn cycle whose
     # rows the tests have not pinned scores lower; 1: on the model alone
     search_models: int = 1
+    # With an anytime search: this many chains search each corrected model, each with the whole
+    # budget and carried on from punctuation to punctuation, and the best any of them finds is
+    # tested. Climbs from one start end in different basins and one chain stays in its basin
+    # whatever its budget, so more chains, not a longer one, is what more host time buys
+    # (docs/learning.md, "Several chains a punctuation"); 1: one chain
+    search_chains: int = 1
     # With an anytime search: a library of good sweeps ("builtin", "none" or a pac-shapes/1
     # file), re-expressed on each new model as starting points (pac_host.search.shapes), with
     # the search's own best from the model before
@@ -179,6 +185,10 @@ class PALConfig:
         if self.search_models > 1 and self.search == "cga":
             raise InputError("--search-models needs an anytime profile (the paper's CGA "
                              "scores on one model)")
+        limits.CHAINS.check(self.search_chains, "--search-chains")
+        if self.search_chains > 1 and self.search == "cga":
+            raise InputError("--search-chains needs an anytime profile (the paper's CGA is "
+                             "one population)")
         if self.search_models > self.model_population:
             raise InputError(f"--search-models {self.search_models} is more than the "
                              f"{self.model_population} models there are")
@@ -486,6 +496,7 @@ class _AnytimeSearch:
         rank, _ = _ranking(models, self.pop, self.cfg, effects)
         pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
+        others = [Chain.from_json(doc) for doc in (self.chain or {}).get("others", [])]
         budget = self.cfg.search_evaluations
         explore = round(budget * self.cfg.explore) if len(models) > 1 else 0
         self.pop, rec, chain = anytime.advance(
@@ -495,6 +506,8 @@ class _AnytimeSearch:
             shapes=sources)
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
+        if self.cfg.search_chains > 1:
+            self._other_chains(models, pop, budget - explore, effects, sources, others)
         if explore > 0:
             found, done, _ = anytime.advance(models[1], self.pop[:1], explore, self.rng,
                                              self.cfg.budget, effects, self.cfg.search,
@@ -505,6 +518,34 @@ class _AnytimeSearch:
         if self.walking_evaluations is not None:
             self.record["evaluations_while_walking"] = self.walking_evaluations
             self.record["best_score_while_walking"] = self.walking_best
+
+
+    def _other_chains(self, models: np.ndarray, pop: np.ndarray, evaluations: int,
+                      effects: Sequence[Effect], sources: list, others: list) -> None:
+        """Chains 1.. of ``cfg.search_chains`` on the corrected model, as chain 0 was run (each
+        from its own carried point, or the population's best), each on a generator seeded from
+        the run's; the best any chain found goes to the population's front, so it is tested
+        (a tie keeps the earlier chain's)."""
+        from pac_host.search import anytime
+
+        seeds = self.rng.integers(2**63, size=self.cfg.search_chains - 1)
+        found = [(self.record.get("best_score", -1), self.pop[0])]
+        docs = []
+        for j, seed in enumerate(seeds):
+            out, rec, chain = anytime.advance(
+                models[0], pop, evaluations, np.random.default_rng(int(seed)), self.cfg.budget,
+                effects, self.cfg.search, chain=others[j] if j < len(others) else None,
+                placement=self.cfg.placement_error(), models=_pooled_models(models, self.cfg),
+                shapes=sources)
+            docs.append(chain.to_json())
+            found.append((rec.get("best_score", -1), out[0]))
+        scores = [int(score) for score, _ in found]
+        best = scores.index(max(scores))
+        x = found[best][1]
+        self.pop = np.concatenate([x[None], self.pop[~(self.pop == x).all(axis=(1, 2))]])[
+            : len(self.pop)]
+        self.chain["others"] = docs
+        self.record.update(chain_scores=scores, best_chain=best)
 
 
 def _pooled_models(models: np.ndarray, cfg: PALConfig) -> np.ndarray | None:
@@ -596,6 +637,11 @@ def _search_from_json(doc) -> dict | None:
     from pac_host.search.local import Chain
 
     out = Chain.from_json(doc).to_json()
+    others = doc.get("others") or []
+    if not isinstance(others, list) or not all(isinstance(c, dict) for c in others):
+        raise InputError("a carried search's other chains must be a list of chains")
+    if others:  # chains 1.. of --search-chains
+        out["others"] = [Chain.from_json(c).to_json() for c in others]
     if doc.get("explore") is not None:  # the best on a posterior draw, the next test
         out["explore"] = np.asarray(doc["explore"], dtype=np.int64).reshape(-1, 2).tolist()
     return out

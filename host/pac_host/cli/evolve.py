@@ -16,6 +16,7 @@ from pac_host.cli.options import (
     placement_option,
     profile_option,
     profile_pal,
+    search_chains_option,
     search_evaluations_option,
     search_models_option,
     shapes_option,
@@ -65,6 +66,7 @@ from pac_host.robot.recovery import describe_counts
 @profile_option()
 @search_evaluations_option()
 @search_models_option()
+@search_chains_option()
 @explore_option()
 @shapes_option()
 @click.option("--search-while-walking/--no-search-while-walking", default=None,
@@ -75,7 +77,8 @@ from pac_host.robot.recovery import describe_counts
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
                correction, structure, tests, operational, placement, profile, search_evaluations,
-               search_models, explore, shapes, search_while_walking, port, observer_spec, placer,
+               search_models, search_chains, explore, shapes, search_while_walking, port,
+               observer_spec, placer,
                **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
@@ -117,7 +120,8 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         learn = profile_pal(profile, search_evaluations, model_generations,
                             dict(model_fitness=model_fitness, correction=correction,
                                  structure=structure, tests=tests, operational=operational,
-                                 placement=placement, search_models=search_models, explore=explore,
+                                 placement=placement, search_models=search_models,
+                                 search_chains=search_chains, explore=explore,
                                  shapes=shapes))
         if placement is None:  # a robot is placed by hand (or seen through a noisy tracker)
             learn = replace(learn, placement="none" if learn.search == "cga" else HAND.to_text())
@@ -137,6 +141,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            correction=learn.correction, structure=learn.structure,
                            tests=learn.tests, operational=learn.operational,
                            placement=learn.placement, search_models=learn.search_models,
+                           search_chains=learn.search_chains,
                            explore=learn.explore,
                            shapes=learn.shapes)
         cfg.check()

@@ -20,6 +20,7 @@ from pac_host.cli.options import (
     profile_option,
     profile_pal,
     progress_enabled,
+    search_chains_option,
     search_evaluations_option,
     search_models_option,
     shapes_option,
@@ -85,6 +86,7 @@ from pac_host.plots import experiment_plots
 @profile_option()
 @search_evaluations_option()
 @search_models_option()
+@search_chains_option()
 @explore_option()
 @shapes_option()
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
@@ -94,8 +96,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
                    optimum_runs, optimum_generations, optimum_evaluations, best_known,
                    model_generations, correction, structure, tests, operational, placement, profile,
-                   search_evaluations, search_models, explore, shapes, resume, scheduler,
-                   connect_timeout) -> None:
+                   search_evaluations, search_models, search_chains, explore, shapes, resume,
+                   scheduler, connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
@@ -124,7 +126,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         pal=profile_pal(profile, search_evaluations, model_generations,
                         dict(model_fitness=model_fitness, correction=correction,
                              structure=structure, tests=tests, operational=operational,
-                             placement=placement, search_models=search_models, explore=explore,
+                             placement=placement, search_models=search_models,
+                                 search_chains=search_chains, explore=explore,
                              shapes=shapes),
                         budget=check_budget(budget)),
     )

@@ -128,6 +128,14 @@ def search_models_option():
              "pinned (an anytime profile; each table costs an evaluation).")
 
 
+def search_chains_option():
+    return click.option(
+        "--search-chains", type=Bounded(limits.CHAINS), default=1, show_default=True,
+        help="Independent search chains on each corrected model, each with the whole budget "
+             "and carried on between punctuations; the best any finds is tested (an anytime "
+             "profile; host time for more basins, not a longer climb in one).")
+
+
 def explore_option():
     return click.option(
         "--explore", type=click.FloatRange(0.0, 1.0, max_open=True), default=None,

@@ -1,0 +1,100 @@
+"""Several search chains a punctuation (``PALConfig.search_chains``): each searches the
+corrected model with the whole budget and is carried on to the next; the best any found is
+tested; the chains are saved with the run and resumed bit for bit; the setting's bad input."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pac_host import pal, profiles, robots
+from pac_host.cli.main import main
+from pac_host.coverage import parse_turn_cycle, simulate
+from pac_host.errors import InputError
+from pac_host.evolve import EvolveConfig
+from pac_host.model import measured_table
+from tests.host.test_pal import resumed_and_whole
+
+
+def _cfg(chains: int, **kw) -> pal.PALConfig:
+    return replace(profiles.apply("default", pal.PALConfig()), search_chains=chains,
+                   shapes="none", explore=0.0, search_evaluations=6_000, generations=80,
+                   cga_population=32, **kw)
+
+
+def _run(cfg: pal.PALConfig, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    robot = pal.SimulatedRobot(robots.build("noisy_rows"), cfg.budget)
+    state = pal.initial_state(measured_table(), rng, cfg)
+    records, states = [], []
+    pal.run(state, robot, rng, cfg, lambda st, rec: (records.append(rec), states.append(st)))
+    return records, states
+
+
+def test_the_best_any_chain_found_is_tested_next():
+    records, states = _run(_cfg(3))
+    assert len(records) == 3
+    spread = 0
+    for rec, st in zip(records, states, strict=True):
+        scores = rec["search"]["chain_scores"]
+        assert len(scores) == 3 and rec["search"]["best_chain"] == scores.index(max(scores))
+        spread += len(set(scores)) > 1
+        assert len(st.search["others"]) == 2  # chains 1 and 2 carried on
+        # the front of the population, the next test, is what the best chain scored there
+        front = simulate(st.models[0], st.cga_pop[:1], 200, st.model_effects).score()[0]
+        assert int(front) == max(scores)
+    assert spread >= 1  # the chains do not all end alike
+    for rec, st in zip(records[1:], states[:-1], strict=True):
+        assert np.array_equal(parse_turn_cycle(rec["tests"][0]), st.cga_pop[0])
+
+
+def test_one_chain_is_the_run_it_was_and_more_chains_search_more():
+    one, _ = _run(_cfg(1))
+    assert all("chain_scores" not in r["search"] for r in one)
+    many, _ = _run(_cfg(3))
+    # chain 0 is the same search as the single chain's up to the first punctuation's end
+    assert many[0]["search"]["chain_scores"][0] == one[0]["search"]["best_score"]
+    assert max(many[0]["search"]["chain_scores"]) >= one[0]["search"]["best_score"]
+
+
+def test_the_chains_are_saved_and_resumed_bit_for_bit():
+    cfg = replace(_cfg(2), generations=120, shapes="builtin")
+    resumed, whole, saved = resumed_and_whole(cfg, 4)
+    assert resumed == whole
+    assert len(saved["search"]["others"]) == 1
+    saved["search"]["others"] = [[1, 2]]
+    with pytest.raises(InputError, match="other chains"):
+        pal.state_from_json(saved)
+
+
+def test_search_chains_is_checked():
+    for bad, match in ((pal.PALConfig(search_chains=2), "anytime"),
+                       (pal.PALConfig(search="ils", search_evaluations=10, search_chains=0),
+                        "search-chains")):
+        with pytest.raises(InputError, match=match):
+            bad.check()
+    cfg = EvolveConfig(search="ils", search_evaluations=10, correction="fit", search_chains=4)
+    assert cfg.pal().search_chains == 4
+    cfg.check()
+
+
+@pytest.mark.parametrize("args", [["--search-chains", "0"], ["--search-chains", "x"],
+                                  ["--search-chains", "2", "--profile", "paper"]])
+def test_bad_search_chains_is_one_line_and_exit_2(tmp_path, args):
+    res = CliRunner().invoke(main, ["experiment", "--seeds", "1", "--generations", "40",
+                                    "--out", str(tmp_path / "x"), *args])
+    assert res.exit_code == 2, res.output
+    assert len(res.output.strip().splitlines()) == 1 and "search-chains" in res.output
+    assert not (tmp_path / "x" / "log.jsonl").exists()
+
+
+def test_a_state_saved_before_several_chains_resumes_with_one(tmp_path):
+    _, states = _run(_cfg(1))
+    doc = json.loads(json.dumps(pal.state_to_json(states[-1], np.random.default_rng(0))))
+    assert "others" not in doc["search"]
+    state, _ = pal.state_from_json(doc)
+    assert "others" not in state.search
