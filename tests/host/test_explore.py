@@ -21,7 +21,8 @@ def _cfg(explore: float) -> pal.PALConfig:
                    search_evaluations=20_000, generations=80, cga_population=32)
 
 
-def _run(cfg: pal.PALConfig, seed: int = 0):
+def run_recorded(cfg: pal.PALConfig, seed: int = 0):
+    """A PAL run on the noisy_rows robot: its records and the state after each punctuation."""
     rng = np.random.default_rng(seed)
     robot = pal.SimulatedRobot(robots.build("noisy_rows"), cfg.budget)
     state = pal.initial_state(measured_table(), rng, cfg)
@@ -31,7 +32,7 @@ def _run(cfg: pal.PALConfig, seed: int = 0):
 
 
 def test_the_best_on_a_posterior_draw_takes_the_test_after_the_best():
-    records, states = _run(_cfg(0.25))
+    records, states = run_recorded(_cfg(0.25))
     assert len(records) == 3
     for rec, st in zip(records, states, strict=True):
         explored = parse_turn_cycle(rec["search"]["explore"])
@@ -53,9 +54,9 @@ def test_the_best_on_a_posterior_draw_takes_the_test_after_the_best():
 
 
 def test_without_explore_no_draw_is_searched_and_the_runs_differ():
-    plain, _ = _run(_cfg(0.0))
+    plain, _ = run_recorded(_cfg(0.0))
     assert all("explore" not in r["search"] for r in plain)
-    explored, _ = _run(_cfg(0.25))
+    explored, _ = run_recorded(_cfg(0.25))
     assert [r["search"]["evaluations"] for r in explored] == [15_000] * 3  # a quarter less
     assert [r["search"]["explore_evaluations"] for r in explored] == [5_000] * 3
     assert [r["tests"] for r in plain] != [r["tests"] for r in explored]

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pac_host import pal, profiles, robots
+from pac_host import pal, profiles
 from pac_host.cli.main import main
 from pac_host.coverage import parse_turn_cycle, simulate
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig
-from pac_host.model import measured_table
+from tests.host.test_explore import run_recorded
 from tests.host.test_pal import resumed_and_whole
 
 
@@ -26,17 +26,8 @@ def _cfg(chains: int, **kw) -> pal.PALConfig:
                    cga_population=32, **kw)
 
 
-def _run(cfg: pal.PALConfig, seed: int = 0):
-    rng = np.random.default_rng(seed)
-    robot = pal.SimulatedRobot(robots.build("noisy_rows"), cfg.budget)
-    state = pal.initial_state(measured_table(), rng, cfg)
-    records, states = [], []
-    pal.run(state, robot, rng, cfg, lambda st, rec: (records.append(rec), states.append(st)))
-    return records, states
-
-
 def test_the_best_any_chain_found_is_tested_next():
-    records, states = _run(_cfg(3))
+    records, states = run_recorded(_cfg(3))
     assert len(records) == 3
     spread = 0
     for rec, st in zip(records, states, strict=True):
@@ -53,9 +44,9 @@ def test_the_best_any_chain_found_is_tested_next():
 
 
 def test_one_chain_is_the_run_it_was_and_more_chains_search_more():
-    one, _ = _run(_cfg(1))
+    one, _ = run_recorded(_cfg(1))
     assert all("chain_scores" not in r["search"] for r in one)
-    many, _ = _run(_cfg(3))
+    many, _ = run_recorded(_cfg(3))
     # chain 0 is the same search as the single chain's up to the first punctuation's end
     assert many[0]["search"]["chain_scores"][0] == one[0]["search"]["best_score"]
     assert max(many[0]["search"]["chain_scores"]) >= one[0]["search"]["best_score"]
@@ -93,7 +84,7 @@ def test_bad_search_chains_is_one_line_and_exit_2(tmp_path, args):
 
 
 def test_a_state_saved_before_several_chains_resumes_with_one(tmp_path):
-    _, states = _run(_cfg(1))
+    _, states = run_recorded(_cfg(1))
     doc = json.loads(json.dumps(pal.state_to_json(states[-1], np.random.default_rng(0))))
     assert "others" not in doc["search"]
     state, _ = pal.state_from_json(doc)
