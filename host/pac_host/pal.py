@@ -520,7 +520,6 @@ class _AnytimeSearch:
             self.record["evaluations_while_walking"] = self.walking_evaluations
             self.record["best_score_while_walking"] = self.walking_best
 
-
     def _other_chains(self, models: np.ndarray, pop: np.ndarray, evaluations: int,
                       effects: Sequence[Effect], sources: list, others: list) -> None:
         """Chains 1.. of ``cfg.search_chains`` on the corrected model, as chain 0 was run (each
