@@ -326,9 +326,7 @@ class Chain:
         self.queue = [(x, score, keys[o]) for x, score, o in every if keys[o] not in self.taken]
         again = [(x, score) for x, score, o in every if keys[o] in self.taken]
         if again and self.origin is not None:
-            if self.origin[2] != model:
-                genes = self.origin[0]
-                self.origin = (genes, int(objective(genes[None])[0]), model)
+            self._origin_on(objective, model)
             if again[0][1] > self.origin[1]:
                 self.origin = (again[0][0].copy(), again[0][1], model)
         self.shaped = model
@@ -338,14 +336,19 @@ class Chain:
         """Where a restart starts: the origin (re-scored on a changed model) unless a source
         not yet taken starts higher, else the queue's next start, else a short CGA run."""
         if self.origin is not None:
-            if self.origin[2] != model:  # the best start so far, on this model
-                genes = self.origin[0]
-                self.origin = (genes, int(objective(genes[None])[0]), model)
+            self._origin_on(objective, model)
             if not (queued and self.queue[0][1] > self.origin[1]):
                 return self.origin[0].copy(), self.origin[1]
         if queued:
             return self._take(model)
         return cga_start(objective, rng, divisor=LOOP_DIVISORS[self.starts % len(LOOP_DIVISORS)])
+
+    def _origin_on(self, objective: Objective, model: str) -> None:
+        """The origin (the best start so far) re-scored on ``model`` if it was scored on
+        another."""
+        if self.origin[2] != model:
+            genes = self.origin[0]
+            self.origin = (genes, int(objective(genes[None])[0]), model)
 
     def _take(self, model: str) -> tuple[np.ndarray, int]:
         """The queue's next start, its source marked as taken; the origin of later restarts
