@@ -500,15 +500,19 @@ class _AnytimeSearch:
         others = [Chain.from_json(doc) for doc in (self.chain or {}).get("others", [])]
         budget = self.cfg.search_evaluations
         explore = round(budget * self.cfg.explore) if len(models) > 1 else 0
-        self.pop, rec, chain = anytime.advance(
-            models[0], pop, budget - explore, self.rng, self.cfg.budget, effects,
-            self.cfg.search, chain=carried, placement=self.cfg.placement_error(),
-            models=_pooled_models(models, self.cfg),
-            shapes=sources)
+
+        def search(rng: np.random.Generator, chain: Chain | None):
+            """One chain's search of the corrected model (every chain's the same way)."""
+            return anytime.advance(models[0], pop, budget - explore, rng, self.cfg.budget,
+                                   effects, self.cfg.search, chain=chain,
+                                   placement=self.cfg.placement_error(),
+                                   models=_pooled_models(models, self.cfg), shapes=sources)
+
+        self.pop, rec, chain = search(self.rng, carried)
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
         if self.cfg.search_chains > 1:
-            self._other_chains(models, pop, budget - explore, effects, sources, others)
+            self._other_chains(search, others)
         if explore > 0:
             found, done, _ = anytime.advance(models[1], self.pop[:1], explore, self.rng,
                                              self.cfg.budget, effects, self.cfg.search,
@@ -520,30 +524,24 @@ class _AnytimeSearch:
             self.record["evaluations_while_walking"] = self.walking_evaluations
             self.record["best_score_while_walking"] = self.walking_best
 
-    def _other_chains(self, models: np.ndarray, pop: np.ndarray, evaluations: int,
-                      effects: Sequence[Effect], sources: list, others: list) -> None:
-        """Chains 1.. of ``cfg.search_chains`` on the corrected model, as chain 0 was run (each
-        from its own carried point, or the population's best), each on a generator seeded from
+    def _other_chains(self, search: Callable, others: list) -> None:
+        """Chains 1.. of ``cfg.search_chains``, each run by ``search`` as chain 0 was (from its
+        own carried point in ``others``, or the population's best) on a generator seeded from
         the run's; the best any chain found goes to the population's front, so it is tested
         (a tie keeps the earlier chain's)."""
-        from pac_host.search import anytime
+        from pac_host.search.anytime import to_front
 
         seeds = self.rng.integers(2**63, size=self.cfg.search_chains - 1)
         found = [(self.record.get("best_score", -1), self.pop[0])]
         docs = []
         for j, seed in enumerate(seeds):
-            out, rec, chain = anytime.advance(
-                models[0], pop, evaluations, np.random.default_rng(int(seed)), self.cfg.budget,
-                effects, self.cfg.search, chain=others[j] if j < len(others) else None,
-                placement=self.cfg.placement_error(), models=_pooled_models(models, self.cfg),
-                shapes=sources)
+            out, rec, chain = search(np.random.default_rng(int(seed)),
+                                     others[j] if j < len(others) else None)
             docs.append(chain.to_json())
             found.append((rec.get("best_score", -1), out[0]))
         scores = [int(score) for score, _ in found]
         best = scores.index(max(scores))
-        x = found[best][1]
-        self.pop = np.concatenate([x[None], self.pop[~(self.pop == x).all(axis=(1, 2))]])[
-            : len(self.pop)]
+        self.pop = to_front(self.pop, found[best][1])[: len(self.pop)]
         self.chain["others"] = docs
         self.record.update(chain_scores=scores, best_chain=best)
 

@@ -127,7 +127,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                         dict(model_fitness=model_fitness, correction=correction,
                              structure=structure, tests=tests, operational=operational,
                              placement=placement, search_models=search_models,
-                                 search_chains=search_chains, explore=explore,
+                             search_chains=search_chains, explore=explore,
                              shapes=shapes),
                         budget=check_budget(budget)),
     )

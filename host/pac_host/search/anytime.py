@@ -67,5 +67,11 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
         record["best_alone_score"] = objective.best_alone_score
     out = pop
     for x in reversed(front):
-        out = np.concatenate([x[None], out[~(out == x).all(axis=(1, 2))]])
+        out = to_front(out, x)
     return out[: len(pop)], {**record, "best_score": objective.best_score}, chain
+
+
+def to_front(pop: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``pop`` (P, 9, 2) with ``x`` first and its copies elsewhere dropped (P + 1 rows at
+    most: the caller cuts)."""
+    return np.concatenate([x[None], pop[~(pop == x).all(axis=(1, 2))]])
