@@ -12,7 +12,9 @@
   :func:`pac_host.search.optimize.optimize`. Each new model's search also starts from the
   project's library of good sweeps re-expressed on it (:mod:`pac_host.search.shapes`). A
   quarter of each budget searches a draw from the corrected model's posterior, whose best is
-  tested after the best (``explore``: Thompson sampling).
+  tested after the best (``explore``: Thompson sampling). Eight chains search each corrected
+  model, each with the whole budget, and the best any finds is tested (``search_chains``:
+  climbs from one start end in different basins; docs/learning.md).
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -28,7 +30,7 @@ from pac_host.pal import PAPER
 PROFILES: dict[str, dict] = {
     "paper": {**PAPER, "search": "cga"},
     "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin",
-                "explore": 0.25},
+                "explore": 0.25, "search_chains": 8},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

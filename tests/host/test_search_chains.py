@@ -89,3 +89,16 @@ def test_a_state_saved_before_several_chains_resumes_with_one(tmp_path):
     assert "others" not in doc["search"]
     state, _ = pal.state_from_json(doc)
     assert "others" not in state.search
+
+
+def test_the_default_profile_runs_eight_chains_and_the_option_overrides_it(tmp_path):
+    """evolve without --search-chains takes the profile's count (eight in the default, one in
+    the paper's CGA); typed, the option replaces it."""
+    small = ["--generations", "0", "--budget", "100", "--initial-generations", "5",
+             "--cga-population", "16"]
+    for name, args, chains in (("default", [], 8), ("one", ["--search-chains", "1"], 1),
+                               ("paper", ["--profile", "paper"], 1)):
+        out = tmp_path / name
+        res = CliRunner().invoke(main, ["evolve", "--out", str(out), *small, *args])
+        assert res.exit_code == 0, res.output
+        assert json.loads((out / "config.json").read_text())["search_chains"] == chains

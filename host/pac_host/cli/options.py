@@ -130,10 +130,11 @@ def search_models_option():
 
 def search_chains_option():
     return click.option(
-        "--search-chains", type=Bounded(limits.CHAINS), default=1, show_default=True,
+        "--search-chains", type=Bounded(limits.CHAINS), default=None,
         help="Independent search chains on each corrected model, each with the whole budget "
              "and carried on between punctuations; the best any finds is tested (an anytime "
-             "profile; host time for more basins, not a longer climb in one).")
+             "profile; host time for more basins, not a longer climb in one) "
+             "[default: the profile's]")
 
 
 def explore_option():
