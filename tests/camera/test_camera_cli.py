@@ -71,7 +71,7 @@ def test_render_calibrate_check_on_files(tmp_path):
 
 SMALL = ["--generations", "40", "--interval", "40", "--initial-generations", "20",
          "--cga-population", "32", "--model-population", "16", "--model-generations", "10",
-         "--seed", "0"]
+         "--seed", "0", "--search-evaluations", "20000"]  # the observers, not the search
 
 
 def test_camera_in_the_loop_gets_the_tracker_fed_results(tmp_path):

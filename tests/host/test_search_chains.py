@@ -96,7 +96,8 @@ def test_the_default_profile_runs_eight_chains_and_the_option_overrides_it(tmp_p
     the paper's CGA); typed, the option replaces it."""
     small = ["--generations", "0", "--budget", "100", "--initial-generations", "5",
              "--cga-population", "16"]
-    for name, args, chains in (("default", [], 8), ("one", ["--search-chains", "1"], 1),
+    cheap = ["--search-evaluations", "2000"]
+    for name, args, chains in (("default", cheap, 8), ("one", [*cheap, "--search-chains", "1"], 1),
                                ("paper", ["--profile", "paper"], 1)):
         out = tmp_path / name
         res = CliRunner().invoke(main, ["evolve", "--out", str(out), *small, *args])

@@ -354,3 +354,21 @@ def test_a_chain_saved_before_sources_were_remembered_still_resumes():
         Chain.from_json({"queue": [[[[12, 3]]]]})
     with pytest.raises(TypeError):  # an origin without the model it was scored on
         Chain.from_json({"origin": [[[12, 3]], 700]})
+
+
+def test_a_re_expression_is_remembered_and_given_as_a_copy():
+    """The chains of a punctuation re-express the same sources on the same model: the second
+    call is the first's result, unchanged by what a caller did to the first's arrays, and
+    another target is computed afreshapes."""
+    srcs = shapes.load("builtin").sources()[:3]
+    target = loop_table(shifted_table().rows)
+    shapes._MEMO.clear()
+    pop, owner = shapes._proposals(srcs, target, 200)
+    want = pop.copy()
+    pop[:] = 0
+    again, _ = shapes._proposals(srcs, target, 200)
+    assert len(shapes._MEMO) == 1 and np.array_equal(again, want)
+    fresh = shapes._reexpress(srcs, target, 200, shapes.BEAM, shapes.LENGTH_COST)
+    assert np.array_equal(again, fresh[0])
+    other, _ = shapes._proposals(srcs, loop_table(measured_table().rows), 200)
+    assert len(shapes._MEMO) == 2 and not np.array_equal(other, want)
