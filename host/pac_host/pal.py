@@ -147,7 +147,7 @@ class PALConfig:
     # budget and carried on from punctuation to punctuation, and the best any of them finds is
     # tested. Climbs from one start end in different basins and one chain stays in its basin
     # whatever its budget, so more chains, not a longer one, is what more host time buys
-    # (docs/learning.md, "Several chains a punctuation"); 1: one chain, 8 in the default
+    # (docs/learning.md, "Eight search chains a punctuation"); 1: one chain, 8 in the default
     # profile. While the robot walks (search_while_walking) chain 0 alone searches
     search_chains: int = 1
     # With an anytime search: a library of good sweeps ("builtin", "none" or a pac-shapes/1
