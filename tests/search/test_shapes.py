@@ -359,11 +359,11 @@ def test_a_chain_saved_before_sources_were_remembered_still_resumes():
 def test_a_re_expression_is_remembered_and_given_as_a_copy():
     """The chains of a punctuation re-express the same sources on the same model: the second
     call is the first's result, unchanged by what a caller did to the first's arrays, and
-    another target is computed afreshapes."""
+    another target is computed afresh."""
     srcs = shapes.load("builtin").sources()[:3]
     target = loop_table(shifted_table().rows)
     shapes._MEMO.clear()
-    pop, owner = shapes._proposals(srcs, target, 200)
+    pop, _ = shapes._proposals(srcs, target, 200)
     want = pop.copy()
     pop[:] = 0
     again, _ = shapes._proposals(srcs, target, 200)
