@@ -356,19 +356,25 @@ def test_a_chain_saved_before_sources_were_remembered_still_resumes():
         Chain.from_json({"origin": [[[12, 3]], 700]})
 
 
-def test_a_re_expression_is_remembered_and_given_as_a_copy():
-    """The chains of a punctuation re-express the same sources on the same model: the second
-    call is the first's result, unchanged by what a caller did to the first's arrays, and
-    another target is computed afresh."""
+def test_each_source_s_re_expression_is_remembered_and_not_changed_by_callers():
+    """The chains of a punctuation re-express the library on the same model beside sources of
+    their own: a source already re-expressed on a target is not re-expressed again, a caller
+    changing what it was given changes nothing remembered, and another target is computed
+    afresh."""
     srcs = shapes.load("builtin").sources()[:3]
     target = loop_table(shifted_table().rows)
     shapes._MEMO.clear()
     pop, _ = shapes._proposals(srcs, target, 200)
     want = pop.copy()
     pop[:] = 0
+    assert len(shapes._MEMO) == 3
     again, _ = shapes._proposals(srcs, target, 200)
-    assert len(shapes._MEMO) == 1 and np.array_equal(again, want)
-    fresh = shapes._reexpress(srcs, target, 200, shapes.BEAM, shapes.LENGTH_COST)
-    assert np.array_equal(again, fresh[0])
+    assert len(shapes._MEMO) == 3 and np.array_equal(again, want)
+    own = shapes.carried(want[0], measured_table().rows)
+    shared, owner = shapes._proposals(srcs[:2] + [own], target, 200)
+    assert len(shapes._MEMO) == 4  # only the new source was re-expressed
+    shapes._MEMO.clear()
+    fresh, fresh_owner = shapes._proposals(srcs[:2] + [own], target, 200)
+    assert np.array_equal(shared, fresh) and np.array_equal(owner, fresh_owner)
     other, _ = shapes._proposals(srcs, loop_table(measured_table().rows), 200)
-    assert len(shapes._MEMO) == 2 and not np.array_equal(other, want)
+    assert len(shapes._MEMO) == 6 and not np.array_equal(other, want)

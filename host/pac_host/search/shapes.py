@@ -143,42 +143,43 @@ def proposals(sources: Sequence[Source], target: np.ndarray, budget: int,
     return _proposals(sources, target, budget, beam, length_cost)[0]
 
 
-# The last few re-expressions, by what they depend on: a punctuation's search chains each
-# re-express the same sources on the same corrected model, and the beam is most of what a
-# chain's start costs (0.12 s a model; the evaluations that score the proposals are still each
-# chain's own)
+# The last re-expressions, one a source, by what they depend on: a punctuation's search chains
+# each re-express the library on the same corrected model, beside sources of their own, and the
+# beam is most of what a chain's start costs (0.12 s a model for the library; the evaluations
+# that score the proposals are still each chain's own)
 _MEMO: dict = {}
-_MEMO_SIZE = 4
+_MEMO_SIZE = 64  # a model's library and every chain's own sources, with room to spare
 _MEMO_LOCK = threading.Lock()  # evolve searches in a worker thread while the robot walks
 
 
 def _proposals(sources: Sequence[Source], target: np.ndarray, budget: int, beam: int = BEAM,
                length_cost: float = LENGTH_COST) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`proposals` and, for each, the index of the first source that proposed it
-    (remembered for the last few sources, targets and settings: the same arguments give the
-    same arrays, copied)."""
+    """:func:`proposals` and, for each, the index of the first source that proposed it."""
     if not sources:
         return np.zeros((0, 9, 2), dtype=np.int64), np.zeros(0, dtype=np.int64)
-    key = (tuple(source_key(src) for src in sources), source_key((np.zeros(0), target)),
-           int(budget), int(beam), float(length_cost))
-    with _MEMO_LOCK:
-        if key not in _MEMO:
-            if len(_MEMO) >= _MEMO_SIZE:
-                _MEMO.pop(next(iter(_MEMO)))
-            _MEMO[key] = _reexpress(sources, target, budget, beam, length_cost)
-        pop, owner = _MEMO[key]
-    return pop.copy(), owner.copy()
-
-
-def _reexpress(sources: Sequence[Source], target: np.ndarray, budget: int, beam: int,
-               length_cost: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_proposals` computed."""
-    parts = [retarget(g, m, target, beam, length_cost=length_cost) for g, m in sources]
+    parts = [_retargeted(src, target, beam, length_cost) for src in sources]
     pop = canonical(np.concatenate(parts), budget)
     owner = np.repeat(np.arange(len(parts)), [len(p) for p in parts])
     _, first = np.unique(pop.reshape(len(pop), -1), axis=0, return_index=True)
     first = np.sort(first)
     return pop[first], owner[first]
+
+
+def _retargeted(source: Source, target: np.ndarray, beam: int, length_cost: float
+                ) -> np.ndarray:
+    """One source re-expressed on ``target`` (:func:`pac_host.search.retarget.retarget`),
+    remembered for the last few sources, targets and settings; the caller must not change it
+    (:func:`_proposals` only reads it)."""
+    key = (source_key(source), source_key((np.zeros(0), target)), int(beam), float(length_cost))
+    with _MEMO_LOCK:
+        if key in _MEMO:
+            _MEMO[key] = _MEMO.pop(key)  # most recently used last
+        else:
+            if len(_MEMO) >= _MEMO_SIZE:
+                _MEMO.pop(next(iter(_MEMO)))
+            genes, moves = source
+            _MEMO[key] = retarget(genes, moves, target, beam, length_cost=length_cost)
+        return _MEMO[key]
 
 
 def source_key(source: Source) -> str:
