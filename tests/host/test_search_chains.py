@@ -52,6 +52,37 @@ def test_one_chain_is_the_run_it_was_and_more_chains_search_more():
     assert max(many[0]["search"]["chain_scores"]) >= one[0]["search"]["best_score"]
 
 
+def test_each_other_chain_is_given_its_own_point_and_not_the_best_chain_s(monkeypatch):
+    """Chain 0 is given the library, the population's best and the operational turn cycle as
+    sources; chains 1.. the library and their own carried point only, so they do not all
+    start again from the best chain's find (which had them end most punctuations alike)."""
+    from pac_host.search import anytime, shapes
+
+    library = len(shapes.load("builtin").sources())
+    calls = []
+    real = anytime.advance
+
+    def spy(*args, **kw):
+        if kw.get("shapes"):
+            chain = kw.get("chain")
+            calls.append((None if chain is None else chain.to_json(),
+                          [genes.tolist() for genes, _ in kw["shapes"][library:]]))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(anytime, "advance", spy)
+    records, _ = run_recorded(replace(_cfg(3), shapes="builtin"))
+    assert len(calls) == 3 * len(records)  # three chains a punctuation, each with sources
+    for k in range(len(records)):
+        first, *rest = calls[3 * k: 3 * k + 3]
+        assert len(first[1]) == 2  # the population's best and the operational turn cycle
+        for chain, extra in rest:
+            if chain is None:  # the first punctuation: no point of its own yet
+                assert extra == []
+            else:
+                own = chain["x"] if chain["x"] is not None else chain["origin"][0]
+                assert extra == [own]
+
+
 def test_the_chains_are_saved_and_resumed_bit_for_bit():
     cfg = replace(_cfg(2), generations=120, shapes="builtin")
     resumed, whole, saved = resumed_and_whole(cfg, 4)
