@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.optimize import minimize
 from scipy.stats import multivariate_normal
 
 from pac_host import cga, model_fit, pal, row_prior
@@ -72,3 +73,37 @@ def test_without_the_smooth_prior_the_rows_never_walked_stay(monkeypatch):
     post = model_fit.correct(base, obs, np.random.default_rng(0), structure="none")
     unused = post.evidence == 0
     assert np.abs(post.mean - base.rows)[unused].max() < 1e-9
+
+
+def test_the_smooth_fit_reaches_its_optimum_on_near_noise_free_steps(monkeypatch):
+    # simulated steps are near noise-free, so the evidence runs to hundreds of millions of
+    # nats: a search stopping on a change relative to that, or on a finite-difference gradient
+    # below its rounding noise, stopped nats short of the optimum, by a machine-dependent margin
+    problems = []
+    fit = row_prior.smooth_prior
+
+    def spy(gram, xty, sigma, scale, floor=0.0):
+        problems.append((gram, xty, sigma, scale, floor))
+        return fit(gram, xty, sigma, scale, floor)
+
+    monkeypatch.setattr(row_prior, "smooth_prior", spy)
+    base, _, obs = _one_side_worn()
+    model_fit.correct(base, obs, np.random.default_rng(0), structure="none")
+    assert len(problems) == 3 and problems[2][2] < 0.01   # dH, steps near noise-free
+    gram, xty, sigma, scale, floor = problems[2]
+    K = fit(gram, xty, sigma, scale, floor)
+    assert K is not None
+
+    def loss(x):
+        a, b, length = np.exp(x[:3])
+        return -row_prior.log_evidence(row_prior.kernel(a, b, length, x[3]), gram, xty, sigma)
+
+    bounds = [(np.log(max(floor, 1e-3 * scale)), np.log(3 * scale)),
+              (np.log(1e-3 * scale), np.log(3 * scale)), tuple(np.log(row_prior.LENGTH)),
+              (0.0, 1.0)]
+    polished = min(minimize(loss, np.array([np.log(0.1 * scale), np.log(0.5 * scale),
+                                            np.log(ell), 0.5]),
+                            method="Nelder-Mead", bounds=bounds,
+                            options={"xatol": 1e-7, "fatol": 1e-9, "maxfev": 5000}).fun
+                   for ell in (2.0, 8.0))
+    assert -row_prior.log_evidence(K, gram, xty, sigma) < polished + 0.05
