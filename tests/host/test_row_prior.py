@@ -83,15 +83,15 @@ def test_the_smooth_fit_reaches_its_optimum_on_near_noise_free_steps(monkeypatch
     fit = row_prior.smooth_prior
 
     def spy(gram, xty, sigma, scale, floor=0.0):
-        problems.append((gram, xty, sigma, scale, floor))
-        return fit(gram, xty, sigma, scale, floor)
+        K = fit(gram, xty, sigma, scale, floor)
+        problems.append(((gram, xty, sigma, scale, floor), K))
+        return K
 
     monkeypatch.setattr(row_prior, "smooth_prior", spy)
     base, _, obs = _one_side_worn()
     model_fit.correct(base, obs, np.random.default_rng(0), structure="none")
-    assert len(problems) == 3 and problems[2][2] < 0.01   # dH, steps near noise-free
-    gram, xty, sigma, scale, floor = problems[2]
-    K = fit(gram, xty, sigma, scale, floor)
+    assert len(problems) == 3 and problems[2][0][2] < 0.01   # dH, steps near noise-free
+    (gram, xty, sigma, scale, floor), K = problems[2]
     assert K is not None
 
     def loss(x):
