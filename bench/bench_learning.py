@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_host import profiles, robots
+from pac_host import profiles, robots, test_selection
 from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import measured_table, shifted_table
 from pac_host.pal import PAPER, PALConfig
@@ -82,12 +82,12 @@ def actual_robots() -> dict:
 def measure(robot_names, methods, seeds: int, out_root: Path, generations: int = 1000,
             optimum_runs: int = 4, optimum_evaluations: int = 10_000_000, jobs: int = 1,
             recombination=("partial", "oracle"), search_evaluations: int | None = None,
-            search_chains: int | None = None) -> dict:
+            search_chains: int | None = None, tests: str | None = None) -> dict:
     """Each method on each robot; the best known on a robot comes from ``optimum_runs``
     chains of ``pac-host optimize`` (whatever the method, so all are measured against the
     same, strongest, search). ``search_evaluations`` replaces every method's search budget a
     punctuation and ``search_chains`` every anytime method's chains (what more host time
-    buys)."""
+    buys); ``tests`` every method's choice of tests but the paper's."""
     all_robots = actual_robots()
     out: dict = {}
     for rname in robot_names:
@@ -97,6 +97,8 @@ def measure(robot_names, methods, seeds: int, out_root: Path, generations: int =
                 pcfg = replace(pcfg, search_evaluations=search_evaluations)
             if search_chains is not None and pcfg.search != "cga":
                 pcfg = replace(pcfg, search_chains=search_chains)
+            if tests is not None and mname != "paper":
+                pcfg = replace(pcfg, tests=tests)
             d = out_root / rname / mname
             if pcfg.shapes != "none":  # measured as on a robot nobody has searched: the
                 # library without the sweeps found on this one
@@ -174,11 +176,14 @@ if __name__ == "__main__":
     ap.add_argument("--search-chains", type=int, default=None,
                     help="every anytime method's search chains a punctuation "
                          "(default: the method's)")
+    ap.add_argument("--tests", default=None, choices=test_selection.CHOICES,
+                    help="every method's tests but the paper's (default: the method's)")
     ap.add_argument("--out", default="out/bench-learning")
     a = ap.parse_args()
     res = measure(a.robots.split(","), a.methods.split(","), a.seeds, Path(a.out),
                   generations=a.generations, optimum_runs=a.optimum_runs,
                   optimum_evaluations=a.optimum_evaluations,
                   jobs=a.jobs, recombination=tuple(a.recombination.split(",")),
-                  search_evaluations=a.search_evaluations, search_chains=a.search_chains)
+                  search_evaluations=a.search_evaluations, search_chains=a.search_chains,
+                  tests=a.tests)
     print(json.dumps({"results": res, "targets": _targets(res, a.seeds)}, indent=1))

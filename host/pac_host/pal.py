@@ -133,7 +133,8 @@ class PALConfig:
     # ``model_generations`` of the model GA on top (0: the fitted table alone).
     correction: str = "fit"
     structure: str = "effects"  # with "fit": "effects" or "none" (rows by evidence alone)
-    tests: str = "informative"  # "paper": best + two perturbations; "informative": test_selection
+    # "paper": best + two perturbations; "informative" and "rows": pac_host.test_selection
+    tests: str = "informative"
     operational: str = "tested"  # "best": only the CGA's best may replace it (the paper)
     # With an anytime search: "POS_CM,HEAD_DEG", score turn cycles from a stencil of start poses
     # for a robot placed by hand with these standard deviations (pac_host.placement); "none":
@@ -390,7 +391,7 @@ def choose_tests(state: PALState, rng: np.random.Generator, cfg: PALConfig) -> n
     """The turn cycles to run: the CGA's best and two more (:mod:`pac_host.test_selection`)."""
     best = state.cga_pop[0]
     pert = perturbations(best, rng, cfg)
-    if cfg.tests != "informative":
+    if cfg.tests == "paper":
         return np.concatenate([best[None], pert])
     row_var = state.models.var(axis=0).sum(axis=-1)
     hopeful = None
@@ -401,7 +402,8 @@ def choose_tests(state: PALState, rng: np.random.Generator, cfg: PALConfig) -> n
     if explored is not None:  # the best on a plausible table takes that place
         hopeful = np.array(explored, dtype=np.int64)
     return test_selection.choose(best, pert, state.cga_pop, state.models, row_var, cfg.budget,
-                                 state.model_effects, hopeful=hopeful)
+                                 state.model_effects, hopeful=hopeful,
+                                 teach=test_selection.TEACHING_ROWS if cfg.tests == "rows" else 0)
 
 
 def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult],

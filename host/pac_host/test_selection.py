@@ -11,6 +11,14 @@ the most posterior variance over the steps it would walk.
 The best turn cycle itself is always test 0: it is the one the robot's operational solution is
 judged by.
 
+The ``rows`` choice adds candidates that teach the rows no test has walked: the best turn
+cycle with one pair's gait cycle swapped for one of the rows of most posterior variance it
+does not use (:func:`teaching_variants`). The informative choice's candidates all stay near
+the best, so rows no sweep near it uses stay unwalked for a whole run; the smooth prior
+extrapolates them, and where it extrapolates wrongly (the end of the strength range) the
+search, which trusts the model, never goes there (docs/learning.md, "What stops the last
+runs").
+
 >>> import numpy as np
 >>> from pac_host.model import measured_table
 >>> from pac_host.model_ga import perturbed_population
@@ -27,9 +35,11 @@ from __future__ import annotations
 import numpy as np
 
 from pac_host.coverage import expand, simulate
+from pac_host.model.table import side, strength
 
-CHOICES = ("paper", "informative")
+CHOICES = ("paper", "informative", "rows")
 DEFAULT_CANDIDATES = 16  # distinct turn cycles from the top of the CGA's population
+TEACHING_ROWS = 8  # with "rows": candidates that swap in one uncertain row each
 
 
 def distinct_candidates(cga_pop: np.ndarray, n: int) -> np.ndarray:
@@ -63,6 +73,28 @@ def row_uncertainty(candidates: np.ndarray, row_var: np.ndarray, budget: int) ->
     return out
 
 
+def teaching_variants(best: np.ndarray, row_var: np.ndarray, k: int) -> np.ndarray:
+    """The best turn cycle (9, 2) with one pair's gait cycle swapped for one of the ``k`` rows
+    of most posterior variance ``row_var`` (32,) that it does not use, one variant a row: the
+    pair of the same turn side and nearest strength takes the row, with its repetitions, so
+    the variant stays close to the sweep and walks the row for as long as the pair did.
+
+    >>> best = np.array([[3, 5], [20, 2]] + [[3, 0]] * 7)
+    >>> row_var = np.zeros(32); row_var[[1, 30]] = [2.0, 1.0]
+    >>> teaching_variants(best, row_var, 2)[:, :2].tolist()
+    [[[1, 5], [20, 2]], [[3, 5], [30, 2]]]
+    """
+    ids = best[:, 0]
+    rows = [int(r) for r in np.argsort(-row_var, kind="stable") if not (ids == r).any()][:k]
+    out = []
+    for r in rows:
+        far = np.abs(strength(ids) - strength(r)) + 16 * (side(ids) != side(r))
+        y = best.copy()
+        y[int(np.argmin(far)), 0] = r
+        out.append(y)
+    return np.array(out, dtype=best.dtype).reshape((len(out),) + best.shape)
+
+
 def choose(
     best: np.ndarray,
     perturbed: np.ndarray,
@@ -74,6 +106,7 @@ def choose(
     n_tests: int = 2,
     n_candidates: int = DEFAULT_CANDIDATES,
     hopeful: np.ndarray | None = None,
+    teach: int = 0,
 ) -> np.ndarray:
     """The best turn cycle and the ``n_tests`` candidates the models disagree on most.
 
@@ -81,13 +114,16 @@ def choose(
     posterior variance of each row (summed over components), the tie-break. ``hopeful``, when
     the best was chosen for being sure on every model (a search pooled over the posterior):
     the best turn cycle on the model alone, which takes the first test after the best, so the
-    rows the model is hopeful about get tested.
+    rows the model is hopeful about get tested. ``teach``: that many
+    :func:`teaching_variants` of the best join the candidates.
     """
     if hopeful is not None and hopeful.tobytes() != best.tobytes() and n_tests > 0:
         rest = choose(best, perturbed, cga_pop[~(cga_pop == hopeful).all(axis=(1, 2))],
-                      models, row_var, budget, effects, n_tests - 1, n_candidates)
+                      models, row_var, budget, effects, n_tests - 1, n_candidates,
+                      teach=teach)
         return np.concatenate([rest[:1], hopeful[None], rest[1:]])
-    cands = np.concatenate([perturbed, distinct_candidates(cga_pop, n_candidates)])
+    cands = np.concatenate([perturbed, distinct_candidates(cga_pop, n_candidates),
+                            teaching_variants(best, row_var, teach)])
     _, keep = np.unique(cands.reshape(len(cands), -1), axis=0, return_index=True)
     keep = np.sort(keep)
     keep = keep[[cands[k].tobytes() != best.tobytes() for k in keep]]

@@ -103,6 +103,39 @@ def test_with_no_candidate_but_the_best_there_are_still_three_tests():
     assert len(test_selection.choose(best, same, np.stack([best] * 4), models, var, 200)) == 3
 
 
+def test_rows_tests_walk_an_uncertain_row_no_candidate_uses():
+    rng = np.random.default_rng(0)
+    best = np.array([[12, 30], [7, 4]])
+    agree = np.array([[12, 10], [15, 10]])
+    pert = np.stack([np.array([[12, 31], [7, 4]]), np.array([[12, 29], [7, 4]])])
+    models = np.broadcast_to(measured_table().rows, (12, 32, 3)).copy()
+    models[:, 3, 2] += rng.normal(size=12) * 6.0  # row 3: unknown, and no candidate walks it
+    var = models.var(axis=0).sum(axis=-1)
+    pop = np.stack([best, agree, agree])
+    walked = [set(t[:, 0].tolist()) for t in
+              test_selection.choose(best, pert, pop, models, var, 200)]
+    assert not any(3 in ids for ids in walked)
+    tests = test_selection.choose(best, pert, pop, models, var, 200, teach=4)
+    # the pair nearest row 3 in turn (id 7, strength 7, the same side) takes it
+    assert np.array_equal(tests[0], best) and len(tests) == 3
+    assert np.array_equal(tests[1], np.array([[12, 30], [3, 4]]))
+
+
+def test_choose_tests_gives_the_teaching_variants_only_with_rows(monkeypatch):
+    cfg = pal.PALConfig(**{**pal.PAPER, "cga_population": 8, "model_population": 6})
+    state = pal.initial_state(measured_table(), np.random.default_rng(0), cfg)
+    taught, choose = [], test_selection.choose
+
+    def spy(*args, teach=0, **kw):
+        taught.append(teach)
+        return choose(*args, teach=teach, **kw)
+
+    monkeypatch.setattr(test_selection, "choose", spy)
+    for tests in ("informative", "rows", "paper"):
+        pal.choose_tests(state, np.random.default_rng(9), pal.replace(cfg, tests=tests))
+    assert taught == [0, test_selection.TEACHING_ROWS]  # the paper's tests choose nothing
+
+
 def test_operational_takes_any_tested_turn_cycle_that_did_better():
     class Robot:
         def run_tests(self, tests):

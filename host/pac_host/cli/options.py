@@ -203,7 +203,9 @@ def learning_options(f):
         click.option("--tests", default=d.tests, show_default=True,
                      type=click.Choice(test_selection.CHOICES),
                      help="paper: the best turn cycle and two perturbations; informative: the "
-                          "best and the two candidates the models disagree on most."),
+                          "best and the two candidates the models disagree on most; rows: as "
+                          "informative, the candidates including the best with a pair swapped "
+                          "for a row no test has pinned."),
         click.option("--operational", default=d.operational, show_default=True,
                      type=click.Choice(pal.OPERATIONAL),
                      help="best: only the CGA's best may replace the operational turn cycle "
