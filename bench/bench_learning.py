@@ -48,9 +48,11 @@ WALKING = 20_000_000  # search evaluations a punctuation for method "walking"
 METHODS = {
     "paper": PALConfig(**PAPER),  # the paper's six differences, partial recombination
     "steps": PALConfig(**{**PAPER, "model_fitness": "steps"}),
-    # the default profile: the whole table fitted, informative tests, no model GA, and the
-    # anytime search between punctuations
+    # the default profile: the whole table fitted, tests that teach the rows, no model GA, and
+    # the anytime search between punctuations
     "default": profiles.apply("default", PALConfig()),
+    # the default with the tests it had before (no candidates swapped to an unpinned row)
+    "informative": profiles.apply("default", PALConfig(tests="informative")),
     # the default without the library of good sweeps (each search starts from short CGA runs)
     "no_shapes": profiles.apply("default", PALConfig(shapes="none")),
     "fit_ga": profiles.apply("default", PALConfig(model_generations=40)),  # + the model GA

@@ -134,7 +134,7 @@ class PALConfig:
     correction: str = "fit"
     structure: str = "effects"  # with "fit": "effects" or "none" (rows by evidence alone)
     # "paper": best + two perturbations; "informative" and "rows": pac_host.test_selection
-    tests: str = "informative"
+    tests: str = "rows"
     operational: str = "tested"  # "best": only the CGA's best may replace it (the paper)
     # With an anytime search: "POS_CM,HEAD_DEG", score turn cycles from a stencil of start poses
     # for a robot placed by hand with these standard deviations (pac_host.placement); "none":

@@ -11,13 +11,13 @@ the most posterior variance over the steps it would walk.
 The best turn cycle itself is always test 0: it is the one the robot's operational solution is
 judged by.
 
-The ``rows`` choice adds candidates that teach the rows no test has walked: the best turn
-cycle with one pair's gait cycle swapped for one of the rows of most posterior variance it
-does not use (:func:`teaching_variants`). The informative choice's candidates all stay near
-the best, so rows no sweep near it uses stay unwalked for a whole run; the smooth prior
-extrapolates them, and where it extrapolates wrongly (the end of the strength range) the
-search, which trusts the model, never goes there (docs/learning.md, "What stops the last
-runs").
+The ``rows`` choice (the default of ``evolve`` and ``experiment``) adds candidates that teach
+the rows no test has walked: the best turn cycle with one pair's gait cycle swapped for one
+of the rows of most posterior variance it does not use (:func:`teaching_variants`). The
+informative choice's candidates all stay near the best, so rows no sweep near it uses stay
+unwalked for a whole run; the smooth prior extrapolates them, and where it extrapolates
+wrongly (the end of the strength range) the search, which trusts the model, never goes there
+(docs/learning.md, "Tests that walk the rows no test has walked").
 
 >>> import numpy as np
 >>> from pac_host.model import measured_table
