@@ -10,6 +10,7 @@ import numpy as np
 from click.testing import CliRunner
 
 from pac_host.cli.main import main
+from pac_host.model.table import GaitTable, save_table
 
 
 def _invoke(*args):
@@ -114,8 +115,7 @@ def test_a_robot_leaving_the_view_is_a_lost_observation_mid_run(tmp_path):
     # a robot that walks straight ahead whatever gait cycle it is sent: its first test leaves
     # the camera's view across the far edge, whichever turn cycle the run tests
     table = tmp_path / "straight.json"
-    table.write_text(json.dumps({"format": "pac-gait-table/1", "cycles": [
-        {"id": i, "F": 15.0, "T": 0.0, "dH": 0.0} for i in range(32)]}))
+    save_table(GaitTable(np.tile([15.0, 0.0, 0.0], (32, 1)), name="straight"), table)
     out = tmp_path / "lost"
     res = _invoke("evolve", "--out", out, "--budget", "30", *SMALL, "--sim-table", table,
                   "--observer", "camera:sim,frames=1")
