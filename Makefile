@@ -4,6 +4,7 @@ VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 OUT     ?= out
+TEST_JOBS ?= 2
 PYDIRS  := $(wildcard host protocol simulator tests bench)
 
 .PHONY: help venv test demo demo-evolve bench bench-diagnose lint sim sim-firmware clean firmware
@@ -39,9 +40,11 @@ $(FW_IMAGE): firmware/servobot.bs2 firmware/tools/tokenize.js $(FW_DEPS)
 
 firmware: $(FW_IMAGE)
 
+# the tests run in TEST_JOBS processes (pytest-xdist); each has its own pseudo-terminals,
+# ephemeral tracker ports and tmp dirs, so none shares a resource with another
 test: $(STAMP) firmware
 	$(BIN)/ruff check $(PYDIRS)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_JOBS)
 
 # The main job on the built-in simulated robot: the paper's experiment (short), then PAL over
 # the serial protocol against the emulated Stamp on a pseudo-terminal.
