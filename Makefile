@@ -41,10 +41,11 @@ $(FW_IMAGE): firmware/servobot.bs2 firmware/tools/tokenize.js $(FW_DEPS)
 firmware: $(FW_IMAGE)
 
 # the tests run in TEST_JOBS processes (pytest-xdist); each has its own pseudo-terminals,
-# ephemeral tracker ports and tmp dirs, so none shares a resource with another
+# ephemeral tracker ports and tmp dirs, so none shares a resource with another; worksteal
+# keeps one process from idling while the other runs the slow tests at the end
 test: $(STAMP) firmware
 	$(BIN)/ruff check $(PYDIRS)
-	$(BIN)/python -m pytest -n $(TEST_JOBS)
+	$(BIN)/python -m pytest -n $(TEST_JOBS) --dist worksteal
 
 # The main job on the built-in simulated robot: the paper's experiment (short), then PAL over
 # the serial protocol against the emulated Stamp on a pseudo-terminal.
