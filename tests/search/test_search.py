@@ -333,3 +333,26 @@ def test_gene_change_moves_are_the_net_moves_of_the_changed_loops():
         changed = np.repeat(y[None], len(_VALUES), axis=0)
         changed[:, j] = _VALUES
         np.testing.assert_allclose(fast[j], loop_moves(changed, repeated), atol=1e-9)
+
+
+def test_the_exact_model_bench_finds_when_the_model_became_exact_and_every_crossover():
+    """bench/exact_model_search.py's two helpers, on which the docs' noisy_rows figures rest."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
+    from exact_model_search import crossovers, exact_from
+
+    def rec(err):
+        return {"model_error": [{"F": err, "T": 0.0, "dH": -err}, {"F": 0.0, "T": 0.0, "dH": 0.0}]}
+
+    # exact at punctuation 2, wrong again at 3: it counts from where it stays exact
+    assert exact_from([rec(0.5), rec(0.0), rec(0.2), rec(0.0), rec(0.0)]) == 4
+    a = parse_turn_cycle("1:1,2:2,3:3")
+    b = parse_turn_cycle("4:4,5:5,6:6")
+    kids = crossovers([a, b])
+    # one run of genes from the other parent: a and b themselves (an empty or a whole run),
+    # 4:4,2:2,3:3  4:4,5:5,3:3  1:1,5:5,3:3  1:1,5:5,6:6  1:1,2:2,6:6  4:4,2:2,6:6, none twice
+    assert len(kids) == 8
+    assert any((k == parse_turn_cycle("1:1,5:5,3:3")).all() for k in kids)
+    assert any((k == parse_turn_cycle("4:4,2:2,3:3")).all() for k in kids)

@@ -1,0 +1,111 @@
+"""Where a learning run's search stops once its model is exact: the search's reach, not the model's.
+
+Given a ``bench_learning.py`` log of one robot and method, reports per seed the punctuation
+(1-based, as the bench counts) from which every row of the model equals the robot's, and the
+final operational fitness. Then, on the robot's exact table and from the library less the
+sweeps found on that robot (as the bench gives it), two measures of what a search can reach:
+
+- ``pac-host optimize`` with eight chains at each budget of ``--budgets`` (total evaluations),
+  seeds 0 .. ``--optimize-seeds`` - 1;
+- every two-point crossover of the runs' final turn cycles (those below ``--below``, so a rare
+  find is not its own parent), scored, and the best ``--climb`` of them climbed to a local
+  optimum: whether the runs' finds combine into a better sweep.
+
+Example (docs/learning.md, "noisy_rows misses the 95% target against its new best known"):
+``python bench/exact_model_search.py --robot noisy_rows --log
+out/bench-learning/noisy_rows/default/log.jsonl --below 51``
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pac_host.coverage import parse_turn_cycle, simulate
+from pac_host.search import shapes
+from pac_host.search.local import Objective, climb
+from pac_host.search.optimize import OptimizeConfig, optimize
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_learning import actual_robots  # noqa: E402
+
+
+def exact_from(records: list[dict], tol: float = 1e-3) -> int:
+    """The first punctuation (1-based) from which every row's error stays within ``tol``."""
+    def worst(r: dict) -> float:
+        return max(max(abs(e["F"]), abs(e["T"]), abs(e["dH"])) for e in r["model_error"])
+    errs = [worst(r) for r in records]
+    return next(i + 1 for i in range(len(errs)) if all(e <= tol for e in errs[i:]))
+
+
+def crossovers(parents: list[np.ndarray]) -> np.ndarray:
+    """Every child of two parents that takes one run of genes [i, j) from the second."""
+    kids = []
+    for a, b in itertools.permutations(range(len(parents)), 2):
+        for i in range(parents[a].shape[0]):
+            for j in range(i + 1, parents[a].shape[0] + 1):
+                k = parents[a].copy()
+                k[i:j] = parents[b][i:j]
+                kids.append(k)
+    return np.unique(np.array(kids), axis=0)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot", required=True)
+    ap.add_argument("--log", required=True, type=Path)
+    ap.add_argument("--below", type=int, default=10**6,
+                    help="Crossover parents: final turn cycles below this fitness.")
+    ap.add_argument("--budgets", default="2400000,24000000")
+    ap.add_argument("--optimize-seeds", type=int, default=6)
+    ap.add_argument("--climb", type=int, default=40)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", type=Path, default=Path("out/exact-model-search.json"))
+    args = ap.parse_args(argv)
+    robots = actual_robots()
+    if args.robot not in robots:
+        ap.error(f"unknown robot {args.robot!r}; use one of {', '.join(robots)}")
+    if not args.log.is_file():
+        ap.error(f"--log {args.log}: no such file")
+    table = robots[args.robot]
+    runs: dict[int, list[dict]] = {}
+    for line in args.log.read_text().splitlines():
+        r = json.loads(line)
+        runs.setdefault(r["seed"], []).append(r)
+    seeds = {}
+    for s, recs in sorted(runs.items()):
+        recs.sort(key=lambda r: r["generation"])
+        seeds[s] = {"exact_from": exact_from(recs), "final": recs[-1]["operational_fitness"],
+                    "turn_cycle": recs[-1]["operational"]}
+    lib = args.out.with_suffix(".shapes.json")
+    lib.parent.mkdir(parents=True, exist_ok=True)
+    lib.write_text(json.dumps(shapes.load("builtin").without(args.robot).to_json()))
+    found = {}
+    for budget in (int(b) for b in args.budgets.split(",")):
+        found[budget] = [
+            optimize(table.rows, OptimizeConfig(evaluations=budget, chains=8, seed=s,
+                                                shapes=str(lib)), table.effects, args.jobs)
+            ["fitness"] for s in range(args.optimize_seeds)]
+    parents = [parse_turn_cycle(v["turn_cycle"]) for v in seeds.values()
+               if v["final"] < args.below]
+    kids = crossovers(parents)
+    fit = np.asarray(simulate(table.rows, kids, 200, table.effects).fitness)
+    objective = Objective(table.rows, 200, table.effects)
+    climbed = []
+    for n in np.argsort(-fit, kind="stable")[:args.climb]:
+        _, score = climb(kids[n], int(objective(kids[n][None])[0]), objective)
+        climbed.append(int(objective.fitness(score)))
+    out = {"robot": args.robot, "seeds": seeds, "optimize_fitness_by_budget": found,
+           "crossover": {"parents": len(parents), "children": len(kids),
+                         "best_child": int(fit.max()), "climbed": sorted(climbed)}}
+    args.out.write_text(json.dumps(out, indent=1))
+    return out
+
+
+if __name__ == "__main__":
+    print(json.dumps(main(), indent=1))
