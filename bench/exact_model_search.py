@@ -5,8 +5,9 @@ Given a ``bench_learning.py`` log of one robot and method, reports per seed the 
 final operational fitness. Then, on the robot's exact table and from the library less the
 sweeps found on that robot (as the bench gives it), two measures of what a search can reach:
 
-- ``pac-host optimize`` with eight chains at each budget of ``--budgets`` (total evaluations),
-  seeds 0 .. ``--optimize-seeds`` - 1;
+- ``pac-host optimize`` with eight chains at each budget of ``--budgets`` (total evaluations)
+  and each kick size of ``--kick-genes`` (genes a kick re-draws), seeds 0 ..
+  ``--optimize-seeds`` - 1;
 - every two-point crossover of the runs' final turn cycles (those below ``--below``, so a rare
   find is not its own parent), scored, and the best ``--climb`` of them climbed to a local
   optimum: whether the runs' finds combine into a better sweep.
@@ -62,6 +63,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--below", type=int, default=10**6,
                     help="Crossover parents: final turn cycles below this fitness.")
     ap.add_argument("--budgets", default="2400000,24000000")
+    ap.add_argument("--kick-genes", default="2")
     ap.add_argument("--optimize-seeds", type=int, default=6)
     ap.add_argument("--climb", type=int, default=40)
     ap.add_argument("--jobs", type=int, default=2)
@@ -87,10 +89,11 @@ def main(argv: list[str] | None = None) -> dict:
     lib.write_text(json.dumps(shapes.load("builtin").without(args.robot).to_json()))
     found = {}
     for budget in (int(b) for b in args.budgets.split(",")):
-        found[budget] = [
-            optimize(table.rows, OptimizeConfig(evaluations=budget, chains=8, seed=s,
-                                                shapes=str(lib)), table.effects, args.jobs)
-            ["fitness"] for s in range(args.optimize_seeds)]
+        for k in (int(k) for k in args.kick_genes.split(",")):
+            cfgs = [OptimizeConfig(evaluations=budget, chains=8, seed=s, shapes=str(lib),
+                                   kick_genes=k) for s in range(args.optimize_seeds)]
+            found[f"{budget} evaluations, kicks of {k} genes"] = [
+                optimize(table.rows, cfg, table.effects, args.jobs)["fitness"] for cfg in cfgs]
     parents = [parse_turn_cycle(v["turn_cycle"]) for v in seeds.values()
                if v["final"] < args.below]
     kids = crossovers(parents)
@@ -100,7 +103,7 @@ def main(argv: list[str] | None = None) -> dict:
     for n in np.argsort(-fit, kind="stable")[:args.climb]:
         _, score = climb(kids[n], int(objective(kids[n][None])[0]), objective)
         climbed.append(int(objective.fitness(score)))
-    out = {"robot": args.robot, "seeds": seeds, "optimize_fitness_by_budget": found,
+    out = {"robot": args.robot, "seeds": seeds, "optimize_fitness": found,
            "crossover": {"parents": len(parents), "children": len(kids),
                          "best_child": int(fit.max()), "climbed": sorted(climbed)}}
     args.out.write_text(json.dumps(out, indent=1))
