@@ -36,12 +36,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_learning import actual_robots  # noqa: E402
 
 
-def exact_from(records: list[dict], tol: float = 1e-3) -> int:
-    """The first punctuation (1-based) from which every row's error stays within ``tol``."""
+def exact_from(records: list[dict], tol: float = 1e-3) -> int | None:
+    """The first punctuation (1-based) from which every row's error stays within ``tol``
+    (None: not exact at the end)."""
     def worst(r: dict) -> float:
         return max(max(abs(e["F"]), abs(e["T"]), abs(e["dH"])) for e in r["model_error"])
     errs = [worst(r) for r in records]
-    return next(i + 1 for i in range(len(errs)) if all(e <= tol for e in errs[i:]))
+    return next((i + 1 for i in range(len(errs)) if all(e <= tol for e in errs[i:])), None)
 
 
 def crossovers(parents: list[np.ndarray]) -> np.ndarray:
@@ -74,28 +75,40 @@ def main(argv: list[str] | None = None) -> dict:
         ap.error(f"unknown robot {args.robot!r}; use one of {', '.join(robots)}")
     if not args.log.is_file():
         ap.error(f"--log {args.log}: no such file")
+    try:
+        budgets = [int(b) for b in args.budgets.split(",")]
+        kicks = [int(k) for k in args.kick_genes.split(",")]
+    except ValueError:
+        ap.error("--budgets and --kick-genes take comma-separated whole numbers")
     table = robots[args.robot]
     runs: dict[int, list[dict]] = {}
-    for line in args.log.read_text().splitlines():
-        r = json.loads(line)
-        runs.setdefault(r["seed"], []).append(r)
+    for n, line in enumerate(args.log.read_text().splitlines(), 1):
+        try:
+            r = json.loads(line)
+            runs.setdefault(r["seed"], []).append(r)
+            r["model_error"], r["operational"], r["operational_fitness"], r["generation"]
+        except (ValueError, KeyError, TypeError):
+            ap.error(f"--log {args.log}: line {n} is not a bench_learning.py record")
     seeds = {}
     for s, recs in sorted(runs.items()):
         recs.sort(key=lambda r: r["generation"])
         seeds[s] = {"exact_from": exact_from(recs), "final": recs[-1]["operational_fitness"],
                     "turn_cycle": recs[-1]["operational"]}
+    parents = [parse_turn_cycle(v["turn_cycle"]) for v in seeds.values()
+               if v["final"] < args.below]
+    if len(parents) < 2:
+        ap.error(f"crossover needs two runs below --below {args.below}; the log has "
+                 f"{len(parents)}")
     lib = args.out.with_suffix(".shapes.json")
     lib.parent.mkdir(parents=True, exist_ok=True)
     lib.write_text(json.dumps(shapes.load("builtin").without(args.robot).to_json()))
     found = {}
-    for budget in (int(b) for b in args.budgets.split(",")):
-        for k in (int(k) for k in args.kick_genes.split(",")):
+    for budget in budgets:
+        for k in kicks:
             cfgs = [OptimizeConfig(evaluations=budget, chains=8, seed=s, shapes=str(lib),
                                    kick_genes=k) for s in range(args.optimize_seeds)]
             found[f"{budget} evaluations, kicks of {k} genes"] = [
                 optimize(table.rows, cfg, table.effects, args.jobs)["fitness"] for cfg in cfgs]
-    parents = [parse_turn_cycle(v["turn_cycle"]) for v in seeds.values()
-               if v["final"] < args.below]
     kids = crossovers(parents)
     fit = np.asarray(simulate(table.rows, kids, 200, table.effects).fitness)
     objective = Objective(table.rows, 200, table.effects)

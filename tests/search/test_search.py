@@ -348,6 +348,7 @@ def test_the_exact_model_bench_finds_when_the_model_became_exact_and_every_cross
 
     # exact at punctuation 2, wrong again at 3: it counts from where it stays exact
     assert exact_from([rec(0.5), rec(0.0), rec(0.2), rec(0.0), rec(0.0)]) == 4
+    assert exact_from([rec(0.0), rec(0.5)]) is None  # wrong at the end
     a = parse_turn_cycle("1:1,2:2,3:3")
     b = parse_turn_cycle("4:4,5:5,6:6")
     kids = crossovers([a, b])
