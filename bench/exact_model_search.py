@@ -1,6 +1,7 @@
 """Where a learning run's search stops once its model is exact: the search's reach, not the model's.
 
-Given a ``bench_learning.py`` log of one robot and method, reports per seed the punctuation
+Given a ``bench_learning.py`` log of one robot, reports for one method's runs (``--method``,
+the recombination the log names them by) per seed the punctuation
 (1-based, as the bench counts) from which every row of the model equals the robot's, and the
 final operational fitness. Then, on the robot's exact table and from the library less the
 sweeps found on that robot (as the bench gives it), two measures of what a search can reach:
@@ -27,7 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_host.coverage import parse_turn_cycle, simulate
+from pac_host.coverage import fitness_of_search_score, parse_turn_cycle
+from pac_host.errors import InputError
+from pac_host.experiment import read_complete_runs
 from pac_host.search import shapes
 from pac_host.search.local import Objective, climb
 from pac_host.search.optimize import OptimizeConfig, optimize
@@ -61,6 +64,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robot", required=True)
     ap.add_argument("--log", required=True, type=Path)
+    ap.add_argument("--method", default="partial")
+    ap.add_argument("--generations", type=int, default=1000,
+                    help="Runs whose log reaches this generation are read.")
     ap.add_argument("--below", type=int, default=10**6,
                     help="Crossover parents: final turn cycles below this fitness.")
     ap.add_argument("--budgets", default="2400000,24000000")
@@ -81,14 +87,16 @@ def main(argv: list[str] | None = None) -> dict:
     except ValueError:
         ap.error("--budgets and --kick-genes take comma-separated whole numbers")
     table = robots[args.robot]
-    runs: dict[int, list[dict]] = {}
-    for n, line in enumerate(args.log.read_text().splitlines(), 1):
-        try:
-            r = json.loads(line)
-            runs.setdefault(r["seed"], []).append(r)
-            r["model_error"], r["operational"], r["operational_fitness"], r["generation"]
-        except (ValueError, KeyError, TypeError):
-            ap.error(f"--log {args.log}: line {n} is not a bench_learning.py record")
+    try:
+        runs = read_complete_runs(args.log, args.generations)
+    except InputError as e:
+        ap.error(str(e))
+    runs = {s: recs for (s, m), recs in runs.items() if m == args.method}
+    if not runs:
+        ap.error(f"--log {args.log}: no run of method {args.method!r} reaches generation "
+                 f"{args.generations}")
+    if any("model_error" not in r for recs in runs.values() for r in recs):
+        ap.error(f"--log {args.log}: its records carry no per-row model error")
     seeds = {}
     for s, recs in sorted(runs.items()):
         recs.sort(key=lambda r: r["generation"])
@@ -110,11 +118,12 @@ def main(argv: list[str] | None = None) -> dict:
             found[f"{budget} evaluations, kicks of {k} genes"] = [
                 optimize(table.rows, cfg, table.effects, args.jobs)["fitness"] for cfg in cfgs]
     kids = crossovers(parents)
-    fit = np.asarray(simulate(table.rows, kids, 200, table.effects).fitness)
     objective = Objective(table.rows, 200, table.effects)
+    scores = objective(kids)  # scored once: ranked by fitness, and each climb starts from it
+    fit = fitness_of_search_score(scores, 200)
     climbed = []
     for n in np.argsort(-fit, kind="stable")[:args.climb]:
-        _, score = climb(kids[n], int(objective(kids[n][None])[0]), objective)
+        _, score = climb(kids[n], int(scores[n]), objective)
         climbed.append(int(objective.fitness(score)))
     out = {"robot": args.robot, "seeds": seeds, "optimize_fitness": found,
            "crossover": {"parents": len(parents), "children": len(kids),

@@ -241,8 +241,8 @@ def recombination_inert(p: pal.PALConfig) -> bool:
     return p.correction == "fit" and p.model_generations == 0
 
 
-def _read_complete_runs(log_path: Path, cfg: ExperimentConfig) -> dict[tuple[int, str], list]:
-    """Punctuation records of runs whose log reaches the final generation."""
+def read_complete_runs(log_path: Path, generations: int) -> dict[tuple[int, str], list]:
+    """Punctuation records, by (seed, method), of runs whose log reaches ``generations``."""
     runs: dict[tuple[int, str], list] = {}
     if not log_path.exists():
         return runs
@@ -255,7 +255,7 @@ def _read_complete_runs(log_path: Path, cfg: ExperimentConfig) -> dict[tuple[int
         except (json.JSONDecodeError, KeyError, TypeError, ValueError):
             raise InputError(f"{log_path}:{n}: not a punctuation record; cannot resume") from None
     return {k: v for k, v in runs.items()
-            if any(r["generation"] >= cfg.generations for r in v)}
+            if any(r["generation"] >= generations for r in v)}
 
 
 def reached_at(generations: Sequence[int], coverage: Sequence[int], optimum: int) -> int | None:
@@ -364,7 +364,7 @@ def run_experiment(
     actual = actual or shifted_table()
     out_dir.mkdir(parents=True, exist_ok=True)
     log_path = out_dir / "log.jsonl"
-    done_runs = _read_complete_runs(log_path, cfg) if resume else {}
+    done_runs = read_complete_runs(log_path, cfg.generations) if resume else {}
     if not resume and log_path.exists() and log_path.stat().st_size > 0:
         raise InputError(f"{log_path} exists: use --resume to continue it, or another --out")
     if resume and log_path.exists():  # drop incomplete runs' lines; they are rerun identically
