@@ -42,6 +42,7 @@ from pac_host.experiment import ExperimentConfig, run_experiment
 from pac_host.model import measured_table, shifted_table
 from pac_host.pal import PAPER, PALConfig
 from pac_host.search import shapes
+from pac_host.search.kicks import SHORTER
 
 WALKING = 20_000_000  # search evaluations a punctuation for method "walking"
 # the learning methods compared: the paper's, and the whole-table correction
@@ -69,6 +70,8 @@ METHODS = {
                               search_evaluations=WALKING),
     # the default without its Thompson-sampled test (each search's whole budget on the model)
     "no_explore": replace(profiles.apply("default", PALConfig()), explore=0.0),
+    # the default with closing kicks that prefer shorter loops (pac_host.search.kicks.SHORTER)
+    "short_loops": replace(profiles.apply("default", PALConfig()), kick_length_cost=SHORTER),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find

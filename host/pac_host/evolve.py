@@ -75,6 +75,7 @@ class EvolveConfig:
     search_chains: int = pal.PALConfig.search_chains  # runs saved before it: 1
     shapes: str = pal.PALConfig.shapes  # runs saved before the library: none
     explore: float = pal.PALConfig.explore  # runs saved before it: 0
+    kick_length_cost: float = pal.PALConfig.kick_length_cost  # runs saved before it: 0
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -104,6 +105,7 @@ class EvolveConfig:
             operational=self.operational, placement=self.placement, search=self.search,
             search_models=self.search_models, search_chains=self.search_chains,
             shapes=self.shapes, explore=self.explore,
+            kick_length_cost=self.kick_length_cost,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

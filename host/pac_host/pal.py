@@ -45,7 +45,7 @@ from pac_host.model.effects import Effect
 from pac_host.model.table import GaitTable
 from pac_host.robot_time import seconds_of_tests
 from pac_host.search import shapes
-from pac_host.search.kicks import loop_table
+from pac_host.search.kicks import check_length_cost, loop_table
 
 CORRECTIONS = ("ga", "fit")
 OPERATIONAL = ("best", "tested")
@@ -161,6 +161,10 @@ class PALConfig:
     # and the best found there takes the test after the best (Thompson sampling): a sweep over
     # rows no test has pinned gets tested when a plausible table favours it
     explore: float = 0.0
+    # With an anytime search: cm of the closing kick's repair error that one gait cycle more of
+    # the kicked loop weighs (pac_host.search.kicks.closing_kick), so the kicks prefer shorter
+    # loops with the same net move; 0: the repair by closeness alone
+    kick_length_cost: float = 0.0
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -198,6 +202,10 @@ class PALConfig:
             raise InputError("--shapes needs an anytime profile (the paper's CGA starts from "
                              "its own population)")
         shapes.load(self.shapes)  # one clear error for a bad library
+        check_length_cost(self.kick_length_cost)
+        if self.kick_length_cost and self.search == "cga":
+            raise InputError("--kick-length-cost needs an anytime profile (the paper's CGA "
+                             "makes no kicks)")
         if not 0.0 <= self.explore < 1.0:
             raise InputError(f"--explore must be a share in [0, 1), got {self.explore}")
         if self.explore > 0 and self.search == "cga":
@@ -477,7 +485,8 @@ class _AnytimeSearch:
             self.state.model_effects, self.cfg.search,
             cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=carried,
             placement=self.cfg.placement_error(),
-            models=_pooled_models(self.state.models, self.cfg))
+            models=_pooled_models(self.state.models, self.cfg),
+            length_cost=self.cfg.kick_length_cost)
         self.chain = chain.to_json()
         self.walking_evaluations = rec["evaluations"]
         self.walking_best = rec.get("best_score", -1)
@@ -515,7 +524,8 @@ class _AnytimeSearch:
                                    effects, self.cfg.search, chain=chain,
                                    placement=self.cfg.placement_error(),
                                    models=_pooled_models(models, self.cfg),
-                                   shapes=sources(*found))
+                                   shapes=sources(*found),
+                                   length_cost=self.cfg.kick_length_cost)
 
         self.pop, rec, chain = search(self.rng, carried, (self.pop[0], operational))
         self.chain = chain.to_json()
@@ -525,7 +535,8 @@ class _AnytimeSearch:
         if explore > 0:
             found, done, _ = anytime.advance(models[1], self.pop[:1], explore, self.rng,
                                              self.cfg.budget, effects, self.cfg.search,
-                                             placement=self.cfg.placement_error())
+                                             placement=self.cfg.placement_error(),
+                                             length_cost=self.cfg.kick_length_cost)
             self.chain["explore"] = found[0].tolist()
             self.record.update(explore=format_turn_cycle(found[0]),
                                explore_evaluations=done["evaluations"])

@@ -12,6 +12,7 @@ from pac_host.cli.link_options import ask, confirm, emulator_options, given, lin
 from pac_host.cli.options import (
     Bounded,
     explore_option,
+    kick_length_cost_option,
     learning_options,
     placement_option,
     profile_option,
@@ -68,6 +69,7 @@ from pac_host.robot.recovery import describe_counts
 @search_models_option()
 @search_chains_option()
 @explore_option()
+@kick_length_cost_option()
 @shapes_option()
 @click.option("--search-while-walking/--no-search-while-walking", default=None,
               help="Also search while the robot walks the tests, on the model they were chosen "
@@ -77,8 +79,8 @@ from pac_host.robot.recovery import describe_counts
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
                correction, structure, tests, operational, placement, profile, search_evaluations,
-               search_models, search_chains, explore, shapes, search_while_walking, port,
-               observer_spec, placer,
+               search_models, search_chains, explore, kick_length_cost, shapes,
+               search_while_walking, port, observer_spec, placer,
                **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
@@ -122,6 +124,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                                  structure=structure, tests=tests, operational=operational,
                                  placement=placement, search_models=search_models,
                                  search_chains=search_chains, explore=explore,
+                                 kick_length_cost=kick_length_cost,
                                  shapes=shapes))
         if placement is None:  # a robot is placed by hand (or seen through a noisy tracker)
             learn = replace(learn, placement="none" if learn.search == "cga" else HAND.to_text())
@@ -143,6 +146,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            placement=learn.placement, search_models=learn.search_models,
                            search_chains=learn.search_chains,
                            explore=learn.explore,
+                           kick_length_cost=learn.kick_length_cost,
                            shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)

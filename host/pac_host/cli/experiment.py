@@ -14,6 +14,7 @@ from pac_host.cli.options import (
     effect_option,
     effects_module_option,
     explore_option,
+    kick_length_cost_option,
     learning_options,
     load_with_effects,
     placement_option,
@@ -88,6 +89,7 @@ from pac_host.plots import experiment_plots
 @search_models_option()
 @search_chains_option()
 @explore_option()
+@kick_length_cost_option()
 @shapes_option()
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 @scheduler_options
@@ -96,8 +98,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                    effect_specs, model_spec, model_fitness, budget, initial_generations,
                    optimum_runs, optimum_generations, optimum_evaluations, best_known,
                    model_generations, correction, structure, tests, operational, placement, profile,
-                   search_evaluations, search_models, search_chains, explore, shapes, resume,
-                   scheduler, connect_timeout) -> None:
+                   search_evaluations, search_models, search_chains, explore, kick_length_cost,
+                   shapes, resume, scheduler, connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
@@ -128,6 +130,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                              structure=structure, tests=tests, operational=operational,
                              placement=placement, search_models=search_models,
                              search_chains=search_chains, explore=explore,
+                             kick_length_cost=kick_length_cost,
                              shapes=shapes),
                         budget=check_budget(budget)),
     )

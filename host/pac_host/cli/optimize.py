@@ -40,6 +40,10 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
               type=click.FloatRange(0, 1, min_open=True),
               help="Share of a gene's 2,016 changes a climb scores each time it looks at the "
                    "gene (1: every change, an exact local optimum).")
+@click.option("--kick-length-cost", default=0.0, show_default=True, type=float, metavar="CM",
+              help="Weigh each gait cycle of a kicked loop as this many cm of the closing "
+                   "kick's repair error: the kicks prefer shorter loops with the same net move "
+                   "(1 is the value measured).")
 @placement_option()
 @shapes_option("builtin")
 @click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED))
@@ -50,7 +54,7 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
               help="Draw the best fitness against seconds to this PNG.")
 def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains, sample,
-                 placement, shapes, seed, jobs, json_out, plot) -> None:
+                 kick_length_cost, placement, shapes, seed, jobs, json_out, plot) -> None:
     """Find the best turn cycle on a model: iterated local search with restarts.
 
     Prints the best turn cycle, its coverage figures (as `simulate` gives them) and how the
@@ -64,7 +68,7 @@ def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains,
         seconds = 60.0
     cfg = OptimizeConfig(budget=budget, seconds=seconds, evaluations=evaluations, chains=chains,
                          seed=seed, sample=sample, placement=parse_placement(placement),
-                         shapes=shapes)
+                         shapes=shapes, kick_length_cost=kick_length_cost)
     cfg.check()
     table = load_with_effects(table_spec, effect_specs)
     if json_out is not None and json_out.is_dir():

@@ -137,6 +137,15 @@ def search_chains_option():
              "[default: the profile's]")
 
 
+def kick_length_cost_option():
+    return click.option(
+        "--kick-length-cost", type=float, default=None, metavar="CM",
+        help="Weigh each gait cycle of a kicked loop as this many cm of the closing kick's "
+             "repair error, so the kicks prefer shorter loops with the same net move (an "
+             "anytime profile; 1 is the value measured; 0: closeness alone) "
+             "[default: the profile's]")
+
+
 def explore_option():
     return click.option(
         "--explore", type=click.FloatRange(0.0, 1.0, max_open=True), default=None,

@@ -268,7 +268,7 @@ class Chain:
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2, sample: float = SAMPLE,
-            shapes: Sequence[Source] = ()) -> None:
+            shapes: Sequence[Source] = (), length_cost: float = 0.0) -> None:
         """Search until the objective's budget or deadline is spent. A carried-on chain first
         re-scores and climbs its local optimum if the objective's model has changed. With
         ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
@@ -280,7 +280,8 @@ class Chain:
         evaluations, seeds 0-15: asymmetric 41.6 against 40.6 when restarts took the next
         source's start, outside_library 40.75 against 39.5; docs/learning.md). Every source
         is re-expressed on each model; one once started from (:attr:`taken`) is not queued
-        again, but its start becomes the origin if it beats it (:meth:`_reshape`)."""
+        again, but its start becomes the origin if it beats it (:meth:`_reshape`).
+        ``length_cost``: the closing kicks' (:func:`pac_host.search.kicks.closing_kick`)."""
         model = objective.fingerprint()
         try:
             while True:
@@ -304,7 +305,7 @@ class Chain:
                     self.x, self.score, self.model = x, score, model
                 while self.stale < patience:
                     y = closing_kick(x, rng, kick_genes, objective.budget,
-                                     objective.loop_table())
+                                     objective.loop_table(), length_cost=length_cost)
                     y, s = climb(y, int(objective(y[None])[0]), objective, rng, sample)
                     self.stale = 0 if s > score else self.stale + 1
                     if objective.fitness(s) >= objective.fitness(score):  # plateaus crossed
@@ -393,12 +394,13 @@ def _queued(genes, score, key=None) -> tuple[np.ndarray, int, str | None]:
 
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
              kick_genes: int = 2, start: np.ndarray | None = None,
-             sample: float = SAMPLE, shapes: Sequence[Source] = ()) -> None:
+             sample: float = SAMPLE, shapes: Sequence[Source] = (),
+             length_cost: float = 0.0) -> None:
     """Iterated local search from ``start`` (or the best of ``shapes`` re-expressed on the
     model, or of a short CGA run), restarted whenever it stalls for ``patience`` kicks, until
     the budget runs out (a :class:`Chain` run to the end); the best is ``objective.best``."""
     Chain(start, starts=int(start is not None)).run(objective, rng, patience, kick_genes,
-                                                    sample, shapes)
+                                                    sample, shapes, length_cost)
 
 
 def cga_start(objective: Objective, rng: np.random.Generator,

@@ -37,6 +37,7 @@ from pac_host.errors import InputError
 from pac_host.model.effects import Effect
 from pac_host.placement import WALKS, PlacementError, placed_fitness, summary
 from pac_host.search import shapes
+from pac_host.search.kicks import check_length_cost
 from pac_host.search.local import SAMPLE, Objective, restarts
 
 MAX_SECONDS = 7 * 24 * 3600.0
@@ -54,6 +55,9 @@ class OptimizeConfig:
     seed: int = 0
     patience: int = 50
     kick_genes: int = 2
+    # cm a gait cycle more of a kicked loop weighs in the closing kick's repair (0: none;
+    # pac_host.search.kicks.SHORTER prefers shorter loops)
+    kick_length_cost: float = 0.0
     sample: float = SAMPLE  # share of a gene's any-change neighbourhood a climb scores a look
     placement: PlacementError | None = None  # score from a stencil of start poses
     # sweeps known to be good, re-expressed on the model as each chain's first start
@@ -71,6 +75,7 @@ class OptimizeConfig:
         limits.CHAINS.check(self.chains, "--chains")
         if self.patience < 1 or not 1 <= self.kick_genes <= MAX_GENES:
             raise InputError("patience must be >= 1 and kick genes 1..9")
+        check_length_cost(self.kick_length_cost)
         if not 0 < self.sample <= 1:
             raise InputError(f"--sample must be in (0, 1], got {self.sample}")
         shapes.load(self.shapes)
@@ -86,7 +91,7 @@ def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig
                           deadline=None if seconds is None else t0 + seconds,
                           placement=cfg.placement)
     restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample,
-             shapes=shapes.load(cfg.shapes).sources())
+             shapes=shapes.load(cfg.shapes).sources(), length_cost=cfg.kick_length_cost)
     # chains are ranked by score: the best's coverage score, or its pooled search score when
     # the walks are from a placement's stencil
     score = objective.best_score if cfg.placement is None else objective.best_search_score
