@@ -357,3 +357,28 @@ def test_the_exact_model_bench_finds_when_the_model_became_exact_and_every_cross
     assert len(kids) == 8
     assert any((k == parse_turn_cycle("1:1,5:5,3:3")).all() for k in kids)
     assert any((k == parse_turn_cycle("4:4,2:2,3:3")).all() for k in kids)
+
+
+def test_search_variants_bench_compares_costs_seed_for_seed(tmp_path, capsys):
+    """bench/search_variants.py, on which docs/search.md's kick length figures rest."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
+    import search_variants
+
+    out = search_variants.compare({0.0: [40, 41, 42], 1.0: [41, 41, 40]})
+    assert out["0.0"] == {"finals": [40, 41, 42], "mean": 41.0}
+    assert (out["1.0"]["higher"], out["1.0"]["lower"], out["1.0"]["mean"]) == (1, 1, 40.667)
+    res = search_variants.main(["--robots", "shifted", "--evaluations", "3000", "--seeds",
+                                "0-1", "--jobs", "1", "--out", str(tmp_path / "v.json")])
+    again = search_variants.one_run("shifted", str(tmp_path / "v.shifted.shapes.json"), 1,
+                                    3000, 1, 1.0)
+    assert res["robots"]["shifted"]["1.0"]["finals"][1] == again  # seed for seed
+    assert res["pooled"]["0.0"]["finals"] == res["robots"]["shifted"]["0.0"]["finals"]
+    for bad in (["--robots", "nobody"], ["--seeds", "5-2"], ["--kick-length-costs", "0,-1"],
+                ["--kick-length-costs", "0,0"]):
+        with pytest.raises(SystemExit) as e:
+            search_variants.main([*bad, "--out", str(tmp_path / "b.json")])
+        assert e.value.code == 2
+        assert len(capsys.readouterr().err.strip().splitlines()[-1]) > 0

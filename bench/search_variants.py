@@ -1,0 +1,116 @@
+"""The search alone, on each robot's exact table: settings of ``pac-host optimize`` compared seed
+for seed, where the model cannot be the reason a run ends short.
+
+For each robot of ``--robots`` (the learning bench's: the shifted robot and those of
+``pac_host.robots``), from the library less the sweeps found on that robot (as the bench gives
+it), runs ``optimize`` with ``--chains`` chains and ``--evaluations`` evaluations for each
+closing-kick length cost of ``--kick-length-costs`` (cm a gait cycle of the kicked loop weighs
+in the repair; :mod:`pac_host.search.kicks`), seeds ``--seeds`` (FIRST-LAST). Reports per robot
+and cost the final fitness of each seed, their mean and, against the first cost, on how many
+seeds it ended higher and lower, with the paired Wilcoxon test; and over every robot pooled.
+
+Example (docs/search.md, "Kicks that prefer shorter loops"; one chain as a PAL run's chains
+are, about 20 s a run on one core):
+``python bench/search_variants.py --robots noisy_rows,asymmetric,outside_library --chains 1
+--evaluations 3000000 --seeds 100-115 --kick-length-costs 0,1``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from pac_host.search import shapes
+from pac_host.search.optimize import OptimizeConfig, optimize
+from pac_host.stats import wilcoxon_signed_rank
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_learning import actual_robots  # noqa: E402
+
+
+def one_run(robot: str, library: str, chains: int, evaluations: int, seed: int,
+            cost: float) -> int:
+    """The fitness ``optimize`` ends at on ``robot``'s exact table."""
+    table = actual_robots()[robot]
+    cfg = OptimizeConfig(evaluations=evaluations, chains=chains, seed=seed, shapes=library,
+                         kick_length_cost=cost)
+    return int(optimize(table.rows, cfg, table.effects)["fitness"])
+
+
+def compare(finals: dict[float, list[int]]) -> dict:
+    """Per cost: the finals, their mean and, against the first cost's, the seeds higher and
+    lower and the paired Wilcoxon p."""
+    base_cost, base = next(iter(finals.items()))
+    out = {}
+    for cost, f in finals.items():
+        row = {"finals": f, "mean": round(sum(f) / len(f), 3)}
+        if cost != base_cost:
+            row.update(higher=sum(a > b for a, b in zip(f, base, strict=True)),
+                       lower=sum(a < b for a, b in zip(f, base, strict=True)),
+                       p_value=round(wilcoxon_signed_rank(f, base)["p_value"], 4))
+        out[str(cost)] = row
+    return out
+
+
+def _seeds(text: str) -> list[int]:
+    first, _, last = text.partition("-")
+    lo, hi = int(first), int(last or first)
+    if not 0 <= lo <= hi:
+        raise ValueError(text)
+    return list(range(lo, hi + 1))
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", default="noisy_rows")
+    ap.add_argument("--chains", type=int, default=1)
+    ap.add_argument("--evaluations", type=int, default=3_000_000)
+    ap.add_argument("--seeds", default="100-115", help="FIRST-LAST (or one seed)")
+    ap.add_argument("--kick-length-costs", default="0,1")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", type=Path, default=Path("out/search-variants.json"))
+    args = ap.parse_args(argv)
+    names = [r.strip() for r in args.robots.split(",") if r.strip()]
+    known = actual_robots()
+    bad = [r for r in names if r not in known]
+    if not names or bad:
+        ap.error(f"unknown robot {bad[0] if bad else '(none)'!r}; use {', '.join(known)}")
+    try:
+        seeds = _seeds(args.seeds)
+        costs = [float(c) for c in args.kick_length_costs.split(",")]
+    except ValueError:
+        ap.error("--seeds takes FIRST-LAST and --kick-length-costs comma-separated numbers")
+    if any(not (math.isfinite(c) and c >= 0) for c in costs) or len(set(costs)) < len(costs):
+        ap.error("--kick-length-costs must be distinct finite numbers, 0 or more")
+    if args.chains < 1 or args.evaluations < args.chains or args.jobs < 1:
+        ap.error("--chains and --jobs must be 1 or more, --evaluations at least --chains")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    jobs = []
+    for robot in names:
+        lib = args.out.parent / f"{args.out.stem}.{robot}.shapes.json"
+        lib.write_text(json.dumps(shapes.load("builtin").without(robot).to_json()))
+        jobs += [(robot, str(lib), args.chains, args.evaluations, s, c)
+                 for c in costs for s in seeds]
+    with ProcessPoolExecutor(max_workers=args.jobs) as ex:
+        done = list(ex.map(one_run, *zip(*jobs, strict=True)))
+    finals: dict[str, dict[float, list[int]]] = {}
+    for (robot, _, _, _, _, cost), f in zip(jobs, done, strict=True):
+        finals.setdefault(robot, {}).setdefault(cost, []).append(f)
+    pooled: dict[float, list[int]] = {c: [] for c in costs}
+    for by_cost in finals.values():
+        for c, f in by_cost.items():
+            pooled[c] += f
+    out = {"settings": {"chains": args.chains, "evaluations": args.evaluations,
+                        "seeds": [seeds[0], seeds[-1]], "kick_length_costs": costs},
+           "robots": {r: compare(by_cost) for r, by_cost in finals.items()},
+           "pooled": compare(pooled)}
+    args.out.write_text(json.dumps(out, indent=1))
+    return out
+
+
+if __name__ == "__main__":
+    print(json.dumps(main(), indent=1))
