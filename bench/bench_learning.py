@@ -21,7 +21,8 @@ Method ``walking`` is the default with 20 million search evaluations a punctuati
 what the time a real robot walks its tests gives the search (``pac-host evolve --port``).
 Methods ``pooled`` and ``walking_pooled`` are ``default`` and ``walking`` with each turn cycle
 scored on the model and three draws from its posterior (``--search-models 4``), the model's
-own best tested beside the pooled best.
+own best tested beside the pooled best. Method ``short_loops`` is the default with closing
+kicks that prefer shorter loops (``--kick-length-cost 1``; docs/search.md).
 ``--search-evaluations N`` gives every method N search evaluations a punctuation (what more
 host time buys). Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
