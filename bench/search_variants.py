@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from pac_host.errors import InputError
 from pac_host.search import shapes
+from pac_host.search.kicks import check_length_cost
 from pac_host.search.optimize import OptimizeConfig, optimize
 from pac_host.stats import wilcoxon_signed_rank
 
@@ -84,8 +85,13 @@ def main(argv: list[str] | None = None) -> dict:
         costs = [float(c) for c in args.kick_length_costs.split(",")]
     except ValueError:
         ap.error("--seeds takes FIRST-LAST and --kick-length-costs comma-separated numbers")
-    if any(not (math.isfinite(c) and c >= 0) for c in costs) or len(set(costs)) < len(costs):
-        ap.error("--kick-length-costs must be distinct finite numbers, 0 or more")
+    try:
+        for c in costs:
+            check_length_cost(c)
+    except InputError as e:
+        ap.error(f"--kick-length-costs: {e}")
+    if len(set(costs)) < len(costs):
+        ap.error("--kick-length-costs must be distinct")
     if args.chains < 1 or args.evaluations < args.chains or args.jobs < 1:
         ap.error("--chains and --jobs must be 1 or more, --evaluations at least --chains")
     args.out.parent.mkdir(parents=True, exist_ok=True)

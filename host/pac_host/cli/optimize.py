@@ -11,6 +11,7 @@ from pac_host import limits
 from pac_host.cli.options import (
     Bounded,
     effect_option,
+    kick_length_cost_option,
     load_with_effects,
     placed_text,
     placement_option,
@@ -40,10 +41,7 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
               type=click.FloatRange(0, 1, min_open=True),
               help="Share of a gene's 2,016 changes a climb scores each time it looks at the "
                    "gene (1: every change, an exact local optimum).")
-@click.option("--kick-length-cost", default=0.0, show_default=True, type=float, metavar="CM",
-              help="Weigh each gait cycle of a kicked loop as this many cm of the closing "
-                   "kick's repair error: the kicks prefer shorter loops with the same net move "
-                   "(1 is the value measured).")
+@kick_length_cost_option(0.0)
 @placement_option()
 @shapes_option("builtin")
 @click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED))

@@ -137,13 +137,16 @@ def search_chains_option():
              "[default: the profile's]")
 
 
-def kick_length_cost_option():
+def kick_length_cost_option(default: float | None = None):
+    """``--kick-length-cost``; without a ``default``, the profile's (PAL's commands)."""
     return click.option(
-        "--kick-length-cost", type=float, default=None, metavar="CM",
+        "--kick-length-cost", type=float, default=default, show_default=default is not None,
+        metavar="CM",
         help="Weigh each gait cycle of a kicked loop as this many cm of the closing kick's "
-             "repair error, so the kicks prefer shorter loops with the same net move (an "
-             "anytime profile; 1 is the value measured; 0: closeness alone) "
-             "[default: the profile's]")
+             "repair error, so the kicks prefer shorter loops with the same net move (1 is "
+             "the value measured; 0: closeness alone)" + (
+                 "" if default is not None
+                 else " (an anytime profile) [default: the profile's]"))
 
 
 def explore_option():
