@@ -65,12 +65,14 @@ class TrackerServer:
             except OSError:
                 return
             conn.settimeout(1.0)
-            try:
-                conn.sendall((HEADER + format_pose(self.world.snapshot())).encode())
-            except OSError:
-                conn.close()
-                continue
+            # Snapshot, send and register under the publishing lock, so that no gait cycle
+            # falls between the snapshot the client sees and the first POSE line it gets.
             with self._lock:
+                try:
+                    conn.sendall((HEADER + format_pose(self.world.snapshot())).encode())
+                except OSError:
+                    conn.close()
+                    continue
                 self._clients.append(conn)
             threading.Thread(target=self._serve, args=(conn,), name="pac-sim-tracker-client",
                              daemon=True).start()

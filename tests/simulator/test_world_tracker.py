@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+import threading
 
 import numpy as np
 import pytest
@@ -64,6 +65,30 @@ def test_tracker_publishes_one_line_per_gait_cycle(make_sim):
     np.testing.assert_allclose([g.observed for g in got], [h.observed for h in hist], atol=6e-4)
     err = np.array([h.observed for h in hist]) - np.array([h.true_pose for h in hist])
     assert np.all(np.abs(err) > 0)  # noise is applied
+
+
+def test_a_gait_cycle_during_a_clients_connect_is_not_lost():
+    """A cycle walked while the tracker is sending a new client its snapshot reaches that
+    client: the snapshot and the registration are one step, as a publish sees them."""
+    with SimStamp(SimConfig(tracker=("127.0.0.1", 0))) as sim:
+        world, walkers = sim.world, []
+        snapshot = world.snapshot
+
+        def slow_snapshot():
+            s = snapshot()
+            t = threading.Thread(target=world.advance, args=(12, 0, None))
+            walkers.append(t)
+            t.start()
+            t.join(0.3)  # the cycle is walked (and published) while this client is connecting
+            return s
+
+        world.snapshot = slow_snapshot
+        with socket.create_connection(sim.tracker.address, timeout=3) as s:
+            lines = _lines(s, 3)
+        assert parse_pose(lines[1]).seq == 0
+        assert (parse_pose(lines[2]).seq, parse_pose(lines[2]).gait) == (1, 12)
+        walkers[0].join(3)
+        assert len(walkers) == 1 and len(world.history) == 1
 
 
 def test_tracker_noise_is_seeded():
