@@ -87,14 +87,16 @@ def test_the_command_line_takes_the_length_cost(tmp_path):
     from pac_host.evolve import EvolveConfig, load_config
 
     assert EvolveConfig().kick_length_cost == 0.0  # a run saved before it: closeness alone
-    out = tmp_path / "run"
-    res = CliRunner().invoke(main, ["evolve", "--out", str(out), "--generations", "20",
-                                    "--interval", "20", "--cga-population", "16",
-                                    "--initial-generations", "5", "--search-evaluations",
-                                    "2000", "--budget", "100", "--kick-length-cost", "1"])
-    assert res.exit_code == 0, res.output
-    assert load_config(out).pal().kick_length_cost == 1.0
-    assert json.loads((out / "config.json").read_text())["kick_length_cost"] == 1.0
+    small = ["--generations", "20", "--interval", "20", "--cga-population", "16",
+             "--initial-generations", "5", "--search-evaluations", "2000", "--budget", "100"]
+    # the default profile prefers shorter loops; the option overrides it
+    for given, expected in (([], SHORTER), (["--kick-length-cost", "0"], 0.0)):
+        out = tmp_path / f"run{len(given)}"
+        res = CliRunner().invoke(main, ["evolve", "--out", str(out), *small, *given])
+        assert res.exit_code == 0, res.output
+        assert load_config(out).pal().kick_length_cost == expected
+        assert json.loads((out / "config.json").read_text())["kick_length_cost"] == expected
+    assert profiles.apply("paper", pal.PALConfig()).kick_length_cost == 0.0  # the CGA kicks not
     for cmd in (["optimize", "--evaluations", "100"],
                 ["experiment", "--out", str(tmp_path / "bad")]):
         bad = CliRunner().invoke(main, [*cmd, "--kick-length-cost", "-1"])

@@ -42,7 +42,8 @@ from pac_host.search.neighbours import _VALUES, slots
 TOP = 8
 WEIGHT = 200.0  # cm of displacement error that weigh as much as one radian of heading error
 # cm of the repair's error that one gait cycle more of the kicked loop weighs as much as, for
-# the searches that ask for it (``kick_length_cost``; 0 is the default's repair). Measured on
+# the searches that ask for it (``kick_length_cost``: PAL's default profile, and ``optimize
+# --kick-length-cost``; 0 is closeness alone). Measured on
 # the exact noisy_rows table, one chain of 3 million evaluations from the library, seeds
 # 100-115: 1 cm ends higher than 0 on 9 seeds and lower on none (mean 49.25 against 48.19; 3 cm
 # 48.81; docs/search.md, "Kicks that prefer shorter loops").
