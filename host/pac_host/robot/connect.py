@@ -18,7 +18,7 @@ from pac_host.errors import InputError
 from pac_host.model import Effect, GaitTable
 from pac_host.model.effects import effective_rows
 from pac_host.robot.api import EVENT_TIMEOUT_S, StampRobot
-from pac_host.robot.observers import Ask, Observer, open_observer
+from pac_host.robot.observers import Ask, Observer, TrackerObserver, open_observer
 from pac_host.robot.placement import OperatorPlacer, Placer, TrackerPlacer
 from pac_protocol.link import READY_TIMEOUT_S
 
@@ -81,6 +81,8 @@ def connect(
             host, _, tport = observer_spec.removeprefix("tracker:").rpartition(":")
             place = TrackerPlacer(host, int(tport))
             stack.callback(place.close)
+            if isinstance(observer, TrackerObserver):  # pac-sim's tracker: it greets
+                observer.await_greeting()
         elif confirm is None:
             raise InputError("a real robot needs an operator to place it at each start pose")
         else:
@@ -120,6 +122,9 @@ def _emulated(stack: contextlib.ExitStack, observer_spec: str | None, o: Emulato
     observer = open_observer(observer_spec or f"tracker:{host}:{tport}", ask, manual_mode,
                              world=sim.world)
     stack.callback(observer.close)
+    if observer_spec is None and isinstance(observer, TrackerObserver):
+        # no gait cycle may be published before the tracker sends the observer every pose
+        observer.await_greeting()
     sim.start()
     # at real-time factor 0 the emulated Stamp answers within milliseconds: fail fast
     scale = max(o.realtime, 0.25)

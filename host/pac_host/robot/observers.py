@@ -34,6 +34,7 @@ import numpy as np
 from pac_host.errors import InputError, PacError
 
 TRACKER_TIMEOUT_S = 3.0  # a camera's pose for a finished gait cycle should come well within this
+GREETING_TIMEOUT_S = 10.0  # pac-sim's tracker greets a new client as soon as it is scheduled
 POWER_ON_MOD = 65536  # the Stamp's power-on count wraps at 16 bits
 # A stream that opens with this header wants to be asked: `CYCLE power_on index` for each gait
 # cycle (``pac-host camera serve``), and answers a POSE line or `LOST power_on why`.
@@ -204,6 +205,19 @@ class TrackerObserver:
         """Drop the lines received so far: they belong to a test cut short, whose power-on
         counts a redone test may reuse after a reset (called before the redo)."""
         self.source.drain()
+
+    def await_greeting(self, timeout: float = GREETING_TIMEOUT_S) -> None:
+        """Wait for the tracker's first ``#`` line. pac-sim's tracker greets a client only once
+        it sends it every later pose, so a run started after the greeting loses none, however
+        late the tracker got round to the connection (a busy machine)."""
+        deadline = time.monotonic() + timeout
+        while (line := self.source.readline(max(deadline - time.monotonic(), 0.0))) is not None:
+            if line.startswith(ASK_HEADER):
+                self._ask = True
+            if line.startswith("#"):
+                return
+        raise ObserverError(f"observer {self.name}: no greeting from the tracker within "
+                            f"{timeout:g} s (is it pac-sim's?)")
 
     def on_cycle(self, power_on: int) -> None:
         self._take_until((power_on - self._n0) % POWER_ON_MOD)
