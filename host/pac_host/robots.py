@@ -91,6 +91,7 @@ def write_all(out_dir: Path, seed: int = DEFAULT_SEED) -> list[Path]:
     return paths
 
 
-if __name__ == "__main__":  # pragma: no cover - a documented one-liner
-    for p in write_all(Path(sys.argv[1] if len(sys.argv) > 1 else "robots")):
+if __name__ == "__main__":  # pragma: no cover - a documented one-liner: DIR [SEED]
+    for p in write_all(Path(sys.argv[1] if len(sys.argv) > 1 else "robots"),
+                       int(sys.argv[2]) if len(sys.argv) > 2 else DEFAULT_SEED):
         print(p)
