@@ -74,6 +74,9 @@ METHODS = {
     # the default with closing kicks by closeness alone (the default before it preferred
     # shorter loops, pac_host.search.kicks.SHORTER)
     "closest_kicks": replace(profiles.apply("default", PALConfig()), kick_length_cost=0.0),
+    # the default without trying shorter loops of a stalled chain's sweep (the default before
+    # it, pac_host.search.shorten)
+    "no_shorten": replace(profiles.apply("default", PALConfig()), shorten_after=0),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find

@@ -5,14 +5,22 @@ For each robot of ``--robots`` (the learning bench's: the shifted robot and thos
 ``pac_host.robots``), from the library less the sweeps found on that robot (as the bench gives
 it), runs ``optimize`` with ``--chains`` chains and ``--evaluations`` evaluations for each
 closing-kick length cost of ``--kick-length-costs`` (cm a gait cycle of the kicked loop weighs
-in the repair; :mod:`pac_host.search.kicks`), seeds ``--seeds`` (FIRST-LAST). Reports per robot
-and cost the final fitness of each seed, their mean and, against the first cost, on how many
-seeds it ended higher and lower, with the paired Wilcoxon test; and over every robot pooled.
+in the repair; :mod:`pac_host.search.kicks`) and each of ``--shorten-after`` (kicks without
+progress after which a chain tries shorter loops of its sweep, 0: never;
+:mod:`pac_host.search.shorten`), seeds ``--seeds`` (FIRST-LAST). Reports per robot and variant
+the final fitness of each seed, their mean and, against the first variant, on how many seeds it
+ended higher and lower, with the paired Wilcoxon test; and over every robot pooled.
 
 Example (docs/search.md, "Kicks that prefer shorter loops"; one chain as a PAL run's chains
 are, about 20 s a run on one core):
 ``python bench/search_variants.py --robots noisy_rows,asymmetric,outside_library --chains 1
 --evaluations 3000000 --seeds 100-115 --kick-length-costs 0,1``
+
+Example (docs/search.md, "Shorter loops of a stalled sweep"; eight chains and a punctuation's
+evaluations, as the default profile searches each corrected model):
+``python bench/search_variants.py --robots
+shifted,noisy_rows,asymmetric,library_on_changed,outside_library --chains 8 --evaluations 3200000
+--seeds 0-9 --kick-length-costs 1 --shorten-after 0,5``
 """
 
 from __future__ import annotations
@@ -27,6 +35,7 @@ from pac_host.errors import InputError
 from pac_host.search import shapes
 from pac_host.search.kicks import check_length_cost
 from pac_host.search.optimize import OptimizeConfig, optimize
+from pac_host.search.shorten import check_shorten_after
 from pac_host.stats import wilcoxon_signed_rank
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -34,26 +43,31 @@ from bench_learning import actual_robots  # noqa: E402
 
 
 def one_run(robot: str, library: str, chains: int, evaluations: int, seed: int,
-            cost: float) -> int:
+            cost: float, shorten_after: int = 0) -> int:
     """The fitness ``optimize`` ends at on ``robot``'s exact table."""
     table = actual_robots()[robot]
     cfg = OptimizeConfig(evaluations=evaluations, chains=chains, seed=seed, shapes=library,
-                         kick_length_cost=cost)
+                         kick_length_cost=cost, shorten_after=shorten_after)
     return int(optimize(table.rows, cfg, table.effects)["fitness"])
 
 
-def compare(finals: dict[float, list[int]]) -> dict:
-    """Per cost: the finals, their mean and, against the first cost's, the seeds higher and
-    lower and the paired Wilcoxon p."""
-    base_cost, base = next(iter(finals.items()))
+def label(cost: float, shorten_after: int) -> str:
+    """A variant's name in the report."""
+    return f"cost {cost:g}, shorten after {shorten_after}"
+
+
+def compare(finals: dict[str, list[int]]) -> dict:
+    """Per variant: the finals, their mean and, against the first variant's, the seeds higher
+    and lower and the paired Wilcoxon p."""
+    base_name, base = next(iter(finals.items()))
     out = {}
-    for cost, f in finals.items():
+    for name, f in finals.items():
         row = {"finals": f, "mean": round(sum(f) / len(f), 3)}
-        if cost != base_cost:
+        if name != base_name:
             row.update(higher=sum(a > b for a, b in zip(f, base, strict=True)),
                        lower=sum(a < b for a, b in zip(f, base, strict=True)),
                        p_value=round(wilcoxon_signed_rank(f, base)["p_value"], 4))
-        out[str(cost)] = row
+        out[name] = row
     return out
 
 
@@ -72,6 +86,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--evaluations", type=int, default=3_000_000)
     ap.add_argument("--seeds", default="100-115", help="FIRST-LAST (or one seed)")
     ap.add_argument("--kick-length-costs", default="0,1")
+    ap.add_argument("--shorten-after", default="0", help="comma-separated kicks (0: never)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("out/search-variants.json"))
     args = ap.parse_args(argv)
@@ -83,15 +98,20 @@ def main(argv: list[str] | None = None) -> dict:
     try:
         seeds = _seeds(args.seeds)
         costs = [float(c) for c in args.kick_length_costs.split(",")]
+        afters = [int(k) for k in args.shorten_after.split(",")]
     except ValueError:
-        ap.error("--seeds takes FIRST-LAST and --kick-length-costs comma-separated numbers")
+        ap.error("--seeds takes FIRST-LAST, --kick-length-costs comma-separated numbers and "
+                 "--shorten-after comma-separated whole numbers")
     try:
         for c in costs:
             check_length_cost(c)
+        for k in afters:
+            check_shorten_after(k)
     except InputError as e:
-        ap.error(f"--kick-length-costs: {e}")
-    if len(set(costs)) < len(costs):
-        ap.error("--kick-length-costs must be distinct")
+        ap.error(str(e))
+    if len(set(costs)) < len(costs) or len(set(afters)) < len(afters):
+        ap.error("--kick-length-costs and --shorten-after must be distinct")
+    variants = [(c, k) for c in costs for k in afters]
     if args.chains < 1 or args.evaluations < args.chains or args.jobs < 1:
         ap.error("--chains and --jobs must be 1 or more, --evaluations at least --chains")
     args.out.parent.mkdir(parents=True, exist_ok=True)
@@ -99,20 +119,21 @@ def main(argv: list[str] | None = None) -> dict:
     for robot in names:
         lib = args.out.parent / f"{args.out.stem}.{robot}.shapes.json"
         lib.write_text(json.dumps(shapes.load("builtin").without(robot).to_json()))
-        jobs += [(robot, str(lib), args.chains, args.evaluations, s, c)
-                 for c in costs for s in seeds]
+        jobs += [(robot, str(lib), args.chains, args.evaluations, s, c, k)
+                 for c, k in variants for s in seeds]
     with ProcessPoolExecutor(max_workers=args.jobs) as ex:
         done = list(ex.map(one_run, *zip(*jobs, strict=True)))
-    finals: dict[str, dict[float, list[int]]] = {}
-    for (robot, _, _, _, _, cost), f in zip(jobs, done, strict=True):
-        finals.setdefault(robot, {}).setdefault(cost, []).append(f)
-    pooled: dict[float, list[int]] = {c: [] for c in costs}
-    for by_cost in finals.values():
-        for c, f in by_cost.items():
-            pooled[c] += f
+    finals: dict[str, dict[str, list[int]]] = {}
+    for (robot, _, _, _, _, cost, after), f in zip(jobs, done, strict=True):
+        finals.setdefault(robot, {}).setdefault(label(cost, after), []).append(f)
+    pooled: dict[str, list[int]] = {label(c, k): [] for c, k in variants}
+    for by_variant in finals.values():
+        for v, f in by_variant.items():
+            pooled[v] += f
     out = {"settings": {"chains": args.chains, "evaluations": args.evaluations,
-                        "seeds": [seeds[0], seeds[-1]], "kick_length_costs": costs},
-           "robots": {r: compare(by_cost) for r, by_cost in finals.items()},
+                        "seeds": [seeds[0], seeds[-1]], "kick_length_costs": costs,
+                        "shorten_after": afters},
+           "robots": {r: compare(by_variant) for r, by_variant in finals.items()},
            "pooled": compare(pooled)}
     args.out.write_text(json.dumps(out, indent=1))
     return out

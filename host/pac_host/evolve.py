@@ -76,6 +76,7 @@ class EvolveConfig:
     shapes: str = pal.PALConfig.shapes  # runs saved before the library: none
     explore: float = pal.PALConfig.explore  # runs saved before it: 0
     kick_length_cost: float = pal.PALConfig.kick_length_cost  # runs saved before it: 0
+    shorten_after: int = pal.PALConfig.shorten_after  # runs saved before it: 0
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -105,7 +106,7 @@ class EvolveConfig:
             operational=self.operational, placement=self.placement, search=self.search,
             search_models=self.search_models, search_chains=self.search_chains,
             shapes=self.shapes, explore=self.explore,
-            kick_length_cost=self.kick_length_cost,
+            kick_length_cost=self.kick_length_cost, shorten_after=self.shorten_after,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

@@ -46,6 +46,7 @@ from pac_host.model.table import GaitTable
 from pac_host.robot_time import seconds_of_tests
 from pac_host.search import shapes
 from pac_host.search.kicks import check_length_cost, loop_table
+from pac_host.search.shorten import check_shorten_after
 
 CORRECTIONS = ("ga", "fit")
 OPERATIONAL = ("best", "tested")
@@ -165,6 +166,10 @@ class PALConfig:
     # the kicked loop weighs (pac_host.search.kicks.closing_kick), so the kicks prefer shorter
     # loops with the same net move; 0: the repair by closeness alone
     kick_length_cost: float = 0.0
+    # With an anytime search: kicks in a row without progress after which a chain tries
+    # shorter loops of its sweep, two genes re-set so the pass ends where it did
+    # (pac_host.search.shorten); 0: never
+    shorten_after: int = 0
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -206,6 +211,10 @@ class PALConfig:
         if self.kick_length_cost and self.search == "cga":
             raise InputError("--kick-length-cost needs an anytime profile (the paper's CGA "
                              "makes no kicks)")
+        check_shorten_after(self.shorten_after)
+        if self.shorten_after and self.search == "cga":
+            raise InputError("--shorten-after needs an anytime profile (the paper's CGA makes "
+                             "no kicks)")
         if not 0.0 <= self.explore < 1.0:
             raise InputError(f"--explore must be a share in [0, 1), got {self.explore}")
         if self.explore > 0 and self.search == "cga":
@@ -486,7 +495,7 @@ class _AnytimeSearch:
             cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=carried,
             placement=self.cfg.placement_error(),
             models=_pooled_models(self.state.models, self.cfg),
-            length_cost=self.cfg.kick_length_cost)
+            length_cost=self.cfg.kick_length_cost, shorten_after=self.cfg.shorten_after)
         self.chain = chain.to_json()
         self.walking_evaluations = rec["evaluations"]
         self.walking_best = rec.get("best_score", -1)
@@ -525,7 +534,8 @@ class _AnytimeSearch:
                                    placement=self.cfg.placement_error(),
                                    models=_pooled_models(models, self.cfg),
                                    shapes=sources(*found),
-                                   length_cost=self.cfg.kick_length_cost)
+                                   length_cost=self.cfg.kick_length_cost,
+                                   shorten_after=self.cfg.shorten_after)
 
         self.pop, rec, chain = search(self.rng, carried, (self.pop[0], operational))
         self.chain = chain.to_json()
@@ -536,7 +546,8 @@ class _AnytimeSearch:
             found, done, _ = anytime.advance(models[1], self.pop[:1], explore, self.rng,
                                              self.cfg.budget, effects, self.cfg.search,
                                              placement=self.cfg.placement_error(),
-                                             length_cost=self.cfg.kick_length_cost)
+                                             length_cost=self.cfg.kick_length_cost,
+                                             shorten_after=self.cfg.shorten_after)
             self.chain["explore"] = found[0].tolist()
             self.record.update(explore=format_turn_cycle(found[0]),
                                explore_evaluations=done["evaluations"])

@@ -18,6 +18,8 @@
   each gait cycle of the kicked loop as 1 cm of its repair's error (``kick_length_cost``:
   the same sweep in fewer gait cycles is walked more times in the budget; on noisy_rows 22/30
   runs end at 95% of the best known against 16/30 without it, no robot lower; docs/search.md).
+  A chain that has kicked five times without progress tries shorter loops of its sweep, two
+  genes re-set so the pass ends where it did (``shorten_after``, :mod:`pac_host.search.shorten`).
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -30,11 +32,13 @@ from dataclasses import fields, replace
 from pac_host.errors import InputError
 from pac_host.pal import PAPER
 from pac_host.search.kicks import SHORTER
+from pac_host.search.shorten import SHORTEN_AFTER
 
 PROFILES: dict[str, dict] = {
     "paper": {**PAPER, "search": "cga"},
     "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin",
-                "explore": 0.25, "search_chains": 8, "kick_length_cost": SHORTER},
+                "explore": 0.25, "search_chains": 8, "kick_length_cost": SHORTER,
+                "shorten_after": SHORTEN_AFTER},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

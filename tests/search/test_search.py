@@ -360,24 +360,30 @@ def test_the_exact_model_bench_finds_when_the_model_became_exact_and_every_cross
 
 
 def test_search_variants_bench_compares_costs_seed_for_seed(tmp_path, capsys):
-    """bench/search_variants.py, on which docs/search.md's kick length figures rest."""
+    """bench/search_variants.py, on which docs/search.md's kick length and shorter-loop figures
+    rest."""
     import sys
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
     import search_variants
 
-    out = search_variants.compare({0.0: [40, 41, 42], 1.0: [41, 41, 40]})
-    assert out["0.0"] == {"finals": [40, 41, 42], "mean": 41.0}
-    assert (out["1.0"]["higher"], out["1.0"]["lower"], out["1.0"]["mean"]) == (1, 1, 40.667)
+    out = search_variants.compare({"a": [40, 41, 42], "b": [41, 41, 40]})
+    assert out["a"] == {"finals": [40, 41, 42], "mean": 41.0}
+    assert (out["b"]["higher"], out["b"]["lower"], out["b"]["mean"]) == (1, 1, 40.667)
     res = search_variants.main(["--robots", "shifted", "--evaluations", "3000", "--seeds",
-                                "0-1", "--jobs", "1", "--out", str(tmp_path / "v.json")])
+                                "0-1", "--shorten-after", "0,1", "--jobs", "1",
+                                "--out", str(tmp_path / "v.json")])
     again = search_variants.one_run("shifted", str(tmp_path / "v.shifted.shapes.json"), 1,
-                                    3000, 1, 1.0)
-    assert res["robots"]["shifted"]["1.0"]["finals"][1] == again  # seed for seed
-    assert res["pooled"]["0.0"]["finals"] == res["robots"]["shifted"]["0.0"]["finals"]
+                                    3000, 1, 1.0, 1)
+    by = res["robots"]["shifted"]
+    assert set(by) == {search_variants.label(c, k) for c in (0, 1) for k in (0, 1)}
+    assert by["cost 1, shorten after 1"]["finals"][1] == again  # seed for seed
+    assert res["pooled"]["cost 0, shorten after 0"]["finals"] == by["cost 0, shorten after 0"][
+        "finals"]
     for bad in (["--robots", "nobody"], ["--seeds", "5-2"], ["--kick-length-costs", "0,-1"],
-                ["--kick-length-costs", "0,0"]):
+                ["--kick-length-costs", "0,0"], ["--shorten-after", "-1"],
+                ["--shorten-after", "1.5"]):
         with pytest.raises(SystemExit) as e:
             search_variants.main([*bad, "--out", str(tmp_path / "b.json")])
         assert e.value.code == 2

@@ -21,6 +21,7 @@ from pac_host.cli.options import (
     search_evaluations_option,
     search_models_option,
     shapes_option,
+    shorten_after_option,
 )
 from pac_host.errors import InputError
 from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
@@ -70,6 +71,7 @@ from pac_host.robot.recovery import describe_counts
 @search_chains_option()
 @explore_option()
 @kick_length_cost_option()
+@shorten_after_option()
 @shapes_option()
 @click.option("--search-while-walking/--no-search-while-walking", default=None,
               help="Also search while the robot walks the tests, on the model they were chosen "
@@ -79,7 +81,7 @@ from pac_host.robot.recovery import describe_counts
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
                correction, structure, tests, operational, placement, profile, search_evaluations,
-               search_models, search_chains, explore, kick_length_cost, shapes,
+               search_models, search_chains, explore, kick_length_cost, shorten_after, shapes,
                search_while_walking, port, observer_spec, placer,
                **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
@@ -124,7 +126,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                                  structure=structure, tests=tests, operational=operational,
                                  placement=placement, search_models=search_models,
                                  search_chains=search_chains, explore=explore,
-                                 kick_length_cost=kick_length_cost,
+                                 kick_length_cost=kick_length_cost, shorten_after=shorten_after,
                                  shapes=shapes))
         if placement is None:  # a robot is placed by hand (or seen through a noisy tracker)
             learn = replace(learn, placement="none" if learn.search == "cga" else HAND.to_text())
@@ -147,6 +149,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            search_chains=learn.search_chains,
                            explore=learn.explore,
                            kick_length_cost=learn.kick_length_cost,
+                           shorten_after=learn.shorten_after,
                            shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)

@@ -25,6 +25,7 @@ from pac_host.cli.options import (
     search_evaluations_option,
     search_models_option,
     shapes_option,
+    shorten_after_option,
 )
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
 from pac_host.errors import InputError
@@ -90,6 +91,7 @@ from pac_host.plots import experiment_plots
 @search_chains_option()
 @explore_option()
 @kick_length_cost_option()
+@shorten_after_option()
 @shapes_option()
 @click.option("--resume", is_flag=True, help="Continue an interrupted experiment in --out.")
 @scheduler_options
@@ -99,7 +101,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                    optimum_runs, optimum_generations, optimum_evaluations, best_known,
                    model_generations, correction, structure, tests, operational, placement, profile,
                    search_evaluations, search_models, search_chains, explore, kick_length_cost,
-                   shapes, resume, scheduler, connect_timeout) -> None:
+                   shorten_after, shapes, resume, scheduler, connect_timeout) -> None:
     """Run PAL from N starting populations with each recombination method.
 
     Each seed's starting population also runs the control "oracle": the same CGA on the actual
@@ -130,7 +132,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                              structure=structure, tests=tests, operational=operational,
                              placement=placement, search_models=search_models,
                              search_chains=search_chains, explore=explore,
-                             kick_length_cost=kick_length_cost,
+                             kick_length_cost=kick_length_cost, shorten_after=shorten_after,
                              shapes=shapes),
                         budget=check_budget(budget)),
     )

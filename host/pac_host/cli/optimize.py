@@ -16,6 +16,7 @@ from pac_host.cli.options import (
     placed_text,
     placement_option,
     shapes_option,
+    shorten_after_option,
     table_option,
 )
 from pac_host.coverage import DEFAULT_BUDGET
@@ -24,6 +25,7 @@ from pac_host.files import write_atomic
 from pac_host.placement import parse_placement
 from pac_host.search.local import SAMPLE
 from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
+from pac_host.search.shorten import SHORTEN_AFTER
 
 
 @click.command("optimize")
@@ -42,6 +44,7 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
               help="Share of a gene's 2,016 changes a climb scores each time it looks at the "
                    "gene (1: every change, an exact local optimum).")
 @kick_length_cost_option(0.0)
+@shorten_after_option(SHORTEN_AFTER)
 @placement_option()
 @shapes_option("builtin")
 @click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED))
@@ -52,7 +55,8 @@ from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
               help="Draw the best fitness against seconds to this PNG.")
 def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains, sample,
-                 kick_length_cost, placement, shapes, seed, jobs, json_out, plot) -> None:
+                 kick_length_cost, shorten_after, placement, shapes, seed, jobs, json_out,
+                 plot) -> None:
     """Find the best turn cycle on a model: iterated local search with restarts.
 
     Prints the best turn cycle, its coverage figures (as `simulate` gives them) and how the
@@ -66,7 +70,8 @@ def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains,
         seconds = 60.0
     cfg = OptimizeConfig(budget=budget, seconds=seconds, evaluations=evaluations, chains=chains,
                          seed=seed, sample=sample, placement=parse_placement(placement),
-                         shapes=shapes, kick_length_cost=kick_length_cost)
+                         shapes=shapes, kick_length_cost=kick_length_cost,
+                         shorten_after=shorten_after)
     cfg.check()
     table = load_with_effects(table_spec, effect_specs)
     if json_out is not None and json_out.is_dir():

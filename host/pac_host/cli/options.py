@@ -11,6 +11,7 @@ from pac_host.errors import InputError, exit_code
 from pac_host.limits import Bound
 from pac_host.model import load_with_effects  # noqa: F401  (re-exported for the commands)
 from pac_host.model.effects_module import load_effects_module
+from pac_host.search.shorten import MAX_SHORTEN_AFTER
 
 
 class Bounded(click.ParamType):
@@ -145,6 +146,17 @@ def kick_length_cost_option(default: float | None = None):
         help="Weigh each gait cycle of a kicked loop as this many cm of the closing kick's "
              "repair error, so the kicks prefer shorter loops with the same net move (1 is "
              "the value measured; 0: closeness alone)" + (
+                 "" if default is not None
+                 else " (an anytime profile) [default: the profile's]"))
+
+
+def shorten_after_option(default: int | None = None):
+    """``--shorten-after``; without a ``default``, the profile's (PAL's commands)."""
+    return click.option(
+        "--shorten-after", type=click.IntRange(0, MAX_SHORTEN_AFTER), default=default,
+        show_default=default is not None, metavar="KICKS",
+        help="After this many kicks in a row without progress a search chain tries shorter "
+             "loops of its sweep, two genes re-set so each pass ends where it did (0: never)" + (
                  "" if default is not None
                  else " (an anytime profile) [default: the profile's]"))
 

@@ -33,7 +33,8 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
             placement: PlacementError | None = None,
             models: np.ndarray | None = None,
             shapes: Sequence[Source] = (),
-            length_cost: float = 0.0) -> tuple[np.ndarray, dict, Chain]:
+            length_cost: float = 0.0,
+            shorten_after: int = 0) -> tuple[np.ndarray, dict, Chain]:
     """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
     ``evaluations`` None: until ``cancelled`` says stop (it must be given then).
@@ -49,7 +50,8 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     in the population: a candidate test of the rows the model is hopeful about. With
     ``shapes`` (:mod:`pac_host.search.shapes`) a chain whose model has changed also considers
     their sweeps re-expressed on this one. ``length_cost``: the closing kicks'
-    (:func:`pac_host.search.kicks.closing_kick`).
+    (:func:`pac_host.search.kicks.closing_kick`); ``shorten_after``: the chain's
+    (:meth:`pac_host.search.local.Chain.run`).
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
@@ -59,7 +61,8 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled,
                           placement=placement, models=models)
     if evaluations is None or evaluations > 0:
-        chain.run(objective, rng, PATIENCE, shapes=shapes, length_cost=length_cost)
+        chain.run(objective, rng, PATIENCE, shapes=shapes, length_cost=length_cost,
+                  shorten_after=shorten_after)
     record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}
     if objective.best is None:
         return pop, record, chain

@@ -30,6 +30,7 @@ from pac_host.search.neighbours import (
     value_indices,
 )
 from pac_host.search.shapes import Source, source_key, starts_by_source
+from pac_host.search.shorten import CLIMBS, shorter_loops
 
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 # What the search scores are (Objective.fingerprint): a chain carried from a run whose scores
@@ -217,6 +218,25 @@ def climb(x: np.ndarray, score: int, objective: Objective,
 # changes a look skips are drawn afresh at the next look.
 SAMPLE = 0.1
 
+
+def shorten(x: np.ndarray, score: int, objective: Objective, rng: np.random.Generator,
+            sample: float = SAMPLE, climbs: int = CLIMBS) -> tuple[np.ndarray, int] | None:
+    """A local optimum past ``x`` (search score ``score``) reached through a shorter loop of the
+    same sweep (:func:`pac_host.search.shorten.shorter_loops`): the proposals are scored and
+    the best ``climbs`` climbed in turn until one ends higher than ``score``; None if none
+    does (or the loop does not repeat)."""
+    proposals = shorter_loops(x, objective.loop_table(), objective.budget)
+    if not len(proposals):
+        return None
+    scores = objective(proposals)
+    for i in np.argsort(-scores, kind="stable")[:climbs]:
+        y, s = climb(proposals[i], int(scores[i]), objective, rng, sample)
+        if s > score:
+            return y, s
+    return None
+
+
+
 RESTART_POPULATION, RESTART_GENERATIONS = 64, 150  # the CGA run that starts each restart
 # Start k's CGA population has its random repetitions divided by LOOP_DIVISORS[k % len]. A loop
 # much shorter than the budget repeats, a periodic sweep; a long one is cut in its first pass,
@@ -268,7 +288,8 @@ class Chain:
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2, sample: float = SAMPLE,
-            shapes: Sequence[Source] = (), length_cost: float = 0.0) -> None:
+            shapes: Sequence[Source] = (), length_cost: float = 0.0,
+            shorten_after: int = 0) -> None:
         """Search until the objective's budget or deadline is spent. A carried-on chain first
         re-scores and climbs its local optimum if the objective's model has changed. With
         ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
@@ -281,7 +302,10 @@ class Chain:
         source's start, outside_library 40.75 against 39.5; docs/learning.md). Every source
         is re-expressed on each model; one once started from (:attr:`taken`) is not queued
         again, but its start becomes the origin if it beats it (:meth:`_reshape`).
-        ``length_cost``: the closing kicks' (:func:`pac_host.search.kicks.closing_kick`)."""
+        ``length_cost``: the closing kicks' (:func:`pac_host.search.kicks.closing_kick`).
+        ``shorten_after``: after this many kicks in a row without a higher score the chain
+        tries shorter loops of its sweep (:func:`shorten`) and goes on from the first that
+        climbs higher; 0: never."""
         model = objective.fingerprint()
         try:
             while True:
@@ -311,6 +335,11 @@ class Chain:
                     if objective.fitness(s) >= objective.fitness(score):  # plateaus crossed
                         x, score = y, s
                         self.x, self.score = x, score
+                    if shorten_after and self.stale == min(shorten_after, patience):
+                        found = shorten(x, score, objective, rng, sample)
+                        if found is not None:
+                            x, score = found
+                            self.x, self.score, self.stale = x, score, 0
                 self.x, self.model = None, None
         except Exhausted:
             pass
@@ -395,12 +424,13 @@ def _queued(genes, score, key=None) -> tuple[np.ndarray, int, str | None]:
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
              kick_genes: int = 2, start: np.ndarray | None = None,
              sample: float = SAMPLE, shapes: Sequence[Source] = (),
-             length_cost: float = 0.0) -> None:
+             length_cost: float = 0.0, shorten_after: int = 0) -> None:
     """Iterated local search from ``start`` (or the best of ``shapes`` re-expressed on the
     model, or of a short CGA run), restarted whenever it stalls for ``patience`` kicks, until
     the budget runs out (a :class:`Chain` run to the end); the best is ``objective.best``."""
     Chain(start, starts=int(start is not None)).run(objective, rng, patience, kick_genes,
-                                                    sample, shapes, length_cost)
+                                                    sample, shapes, length_cost,
+                                                    shorten_after)
 
 
 def cga_start(objective: Objective, rng: np.random.Generator,

@@ -39,6 +39,7 @@ from pac_host.placement import WALKS, PlacementError, placed_fitness, summary
 from pac_host.search import shapes
 from pac_host.search.kicks import check_length_cost
 from pac_host.search.local import SAMPLE, Objective, restarts
+from pac_host.search.shorten import SHORTEN_AFTER, check_shorten_after
 
 MAX_SECONDS = 7 * 24 * 3600.0
 PLACED_STREAM = 1 << 20  # its seed stream, apart from the chains' (SeedSequence([seed, chain]))
@@ -58,6 +59,9 @@ class OptimizeConfig:
     # cm a gait cycle more of a kicked loop weighs in the closing kick's repair (0: none;
     # pac_host.search.kicks.SHORTER prefers shorter loops)
     kick_length_cost: float = 0.0
+    # kicks without progress after which a chain tries shorter loops of its sweep
+    # (pac_host.search.shorten; 0: never)
+    shorten_after: int = SHORTEN_AFTER
     sample: float = SAMPLE  # share of a gene's any-change neighbourhood a climb scores a look
     placement: PlacementError | None = None  # score from a stencil of start poses
     # sweeps known to be good, re-expressed on the model as each chain's first start
@@ -76,6 +80,7 @@ class OptimizeConfig:
         if self.patience < 1 or not 1 <= self.kick_genes <= MAX_GENES:
             raise InputError("patience must be >= 1 and kick genes 1..9")
         check_length_cost(self.kick_length_cost)
+        check_shorten_after(self.shorten_after)
         if not 0 < self.sample <= 1:
             raise InputError(f"--sample must be in (0, 1], got {self.sample}")
         shapes.load(self.shapes)
@@ -91,7 +96,8 @@ def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig
                           deadline=None if seconds is None else t0 + seconds,
                           placement=cfg.placement)
     restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample,
-             shapes=shapes.load(cfg.shapes).sources(), length_cost=cfg.kick_length_cost)
+             shapes=shapes.load(cfg.shapes).sources(), length_cost=cfg.kick_length_cost,
+             shorten_after=cfg.shorten_after)
     # chains are ranked by score: the best's coverage score, or its pooled search score when
     # the walks are from a placement's stencil
     score = objective.best_score if cfg.placement is None else objective.best_search_score
