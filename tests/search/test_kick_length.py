@@ -83,25 +83,36 @@ def test_a_bad_length_cost_is_one_clear_error(bad):
         pal.PALConfig(kick_length_cost=1.0).check()  # the paper's CGA makes no kicks
 
 
-def test_the_command_line_takes_the_length_cost(tmp_path):
-    from pac_host.evolve import EvolveConfig, load_config
+def check_anytime_option(tmp_path, option: str, field: str, profile_value, override: str,
+                         override_value, paper_value: str) -> None:
+    """An anytime search setting on the command line: evolve saves the default profile's value,
+    ``option override`` replaces it; ``option -1`` is exit 2 and one line naming the option in
+    optimize and experiment; with ``--profile paper`` the option is refused (exit 2)."""
+    from pac_host.evolve import load_config
 
-    assert EvolveConfig().kick_length_cost == 0.0  # a run saved before it: closeness alone
     small = ["--generations", "20", "--interval", "20", "--cga-population", "16",
              "--initial-generations", "5", "--search-evaluations", "2000", "--budget", "100"]
-    # the default profile prefers shorter loops; the option overrides it
-    for given, expected in (([], SHORTER), (["--kick-length-cost", "0"], 0.0)):
+    for given, expected in (([], profile_value), ([option, override], override_value)):
         out = tmp_path / f"run{len(given)}"
         res = CliRunner().invoke(main, ["evolve", "--out", str(out), *small, *given])
         assert res.exit_code == 0, res.output
-        assert load_config(out).pal().kick_length_cost == expected
-        assert json.loads((out / "config.json").read_text())["kick_length_cost"] == expected
-    assert profiles.apply("paper", pal.PALConfig()).kick_length_cost == 0.0  # the CGA kicks not
+        assert getattr(load_config(out).pal(), field) == expected
+        assert json.loads((out / "config.json").read_text())[field] == expected
     for cmd in (["optimize", "--evaluations", "100"],
                 ["experiment", "--out", str(tmp_path / "bad")]):
-        bad = CliRunner().invoke(main, [*cmd, "--kick-length-cost", "-1"])
-        assert bad.exit_code == 2 and "--kick-length-cost" in bad.output, bad.output
+        bad = CliRunner().invoke(main, [*cmd, option, "-1"])
+        assert bad.exit_code == 2 and option in bad.output, bad.output
         assert "Traceback" not in bad.output
     paper = CliRunner().invoke(main, ["experiment", "--out", str(tmp_path / "p"), "--profile",
-                                      "paper", "--kick-length-cost", "1"])
+                                      "paper", option, paper_value])
     assert paper.exit_code == 2 and "anytime" in paper.output, paper.output
+
+
+def test_the_command_line_takes_the_length_cost(tmp_path):
+    from pac_host.evolve import EvolveConfig
+
+    assert EvolveConfig().kick_length_cost == 0.0  # a run saved before it: closeness alone
+    assert profiles.apply("paper", pal.PALConfig()).kick_length_cost == 0.0  # the CGA kicks not
+    # the default profile prefers shorter loops; the option overrides it
+    check_anytime_option(tmp_path, "--kick-length-cost", "kick_length_cost", SHORTER, "0", 0.0,
+                         "1")

@@ -6,15 +6,12 @@ and bad values are one clear error."""
 from __future__ import annotations
 
 import itertools
-import json
 from dataclasses import replace
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 from pac_host import pal, profiles, robots
-from pac_host.cli.main import main
 from pac_host.coverage import parse_turn_cycle, simulate
 from pac_host.errors import InputError
 from pac_host.model import measured_table, shifted_table
@@ -30,6 +27,7 @@ from pac_host.search.shorten import (
     check_shorten_after,
     shorter_loops,
 )
+from tests.search.test_kick_length import check_anytime_option
 
 LOOP = parse_turn_cycle("10:1,25:8,21:11,17:2,9:4,5:8,22:3,11:1,1:6")  # 44 cycles on shifted
 # A local optimum the default's chains stall on, on the exact noisy_rows table: 49, a 37-cycle
@@ -157,25 +155,11 @@ def test_a_bad_setting_is_one_clear_error(bad):
 
 
 def test_the_command_line_takes_the_setting(tmp_path):
-    from pac_host.evolve import EvolveConfig, load_config
+    from pac_host.evolve import EvolveConfig
 
     assert EvolveConfig().shorten_after == 0  # a run saved before it: never
     assert profiles.apply("paper", pal.PALConfig()).shorten_after == 0
     with pytest.raises(InputError, match="anytime"):
         pal.PALConfig(shorten_after=5).check()  # the paper's CGA makes no kicks
-    small = ["--generations", "20", "--interval", "20", "--cga-population", "16",
-             "--initial-generations", "5", "--search-evaluations", "2000", "--budget", "100"]
-    for given, expected in (([], SHORTEN_AFTER), (["--shorten-after", "0"], 0)):
-        out = tmp_path / f"run{len(given)}"
-        res = CliRunner().invoke(main, ["evolve", "--out", str(out), *small, *given])
-        assert res.exit_code == 0, res.output
-        assert load_config(out).pal().shorten_after == expected
-        assert json.loads((out / "config.json").read_text())["shorten_after"] == expected
-    for cmd in (["optimize", "--evaluations", "100"],
-                ["experiment", "--out", str(tmp_path / "bad")]):
-        bad = CliRunner().invoke(main, [*cmd, "--shorten-after", "-1"])
-        assert bad.exit_code == 2 and "--shorten-after" in bad.output, bad.output
-        assert "Traceback" not in bad.output
-    paper = CliRunner().invoke(main, ["experiment", "--out", str(tmp_path / "p"), "--profile",
-                                      "paper", "--shorten-after", "5"])
-    assert paper.exit_code == 2 and "anytime" in paper.output, paper.output
+    check_anytime_option(tmp_path, "--shorten-after", "shorten_after", SHORTEN_AFTER, "0", 0,
+                         "5")

@@ -236,7 +236,6 @@ def shorten(x: np.ndarray, score: int, objective: Objective, rng: np.random.Gene
     return None
 
 
-
 RESTART_POPULATION, RESTART_GENERATIONS = 64, 150  # the CGA run that starts each restart
 # Start k's CGA population has its random repetitions divided by LOOP_DIVISORS[k % len]. A loop
 # much shorter than the budget repeats, a periodic sweep; a long one is cut in its first pass,

@@ -4,10 +4,10 @@ cycles and ends its pass where it did.
 A repeating sweep (a loop shorter than the budget) covers ``budget / L`` passes; the same pass
 walked in fewer gait cycles is walked more times and reaches more rows. The good sweeps a search
 stalls on differ from better ones in the length of the same pass more than in its shape (on
-the exact noisy_rows table the chains end at 49 with 37- and 38-cycle loops, the best known, 52,
-walks the same three-row pass in 35; docs/search.md). Single-gene changes cannot shorten a
-pass without moving where it ends, so every later pass drifts and the change scores worse;
-a random kick rarely lands on the pair that shortens it and closes it again.
+the exact noisy_rows table the chains end at 49 with 37- and 38-cycle loops, the best known
+sweeps, 52 and 53, walk the same three-row pass in 35; docs/search.md). Single-gene changes
+cannot shorten a pass without moving where it ends, so every later pass drifts and the change
+scores worse; a random kick rarely lands on the pair that shortens it and closes it again.
 
 :func:`shorter_loops` lists, for every pair of genes worth changing, the re-settings of both
 that shorten the loop by 1 to :data:`SHORTER_BY` gait cycles, and keeps the ``top`` whose net
@@ -50,7 +50,6 @@ SHORTER_BY = 3  # gait cycles a shorter loop may lose at most
 TOP = 64  # re-settings of each pair of genes kept, closest first
 CLIMBS = 16  # of the best-scored, how many a step climbs before it gives up
 _EMPTY = len(_VALUES) - 1
-_NO_MOVE = np.array([0j, 1 + 0j])
 
 
 def check_shorten_after(value: int) -> int:
@@ -80,13 +79,6 @@ def _pairs_summing_to(total: int) -> tuple[np.ndarray, np.ndarray]:
     return out
 
 
-def _compose_all(steps: np.ndarray) -> np.ndarray:
-    out = _NO_MOVE
-    for s in steps:
-        out = compose_moves(out, s)
-    return out
-
-
 def shorter_loops(x: np.ndarray, repeated: np.ndarray, budget: int, top: int = TOP,
                   by: int = SHORTER_BY, weight: float = WEIGHT) -> np.ndarray:
     """Turn cycles (N, 9, 2) that walk loop ``x`` (9, 2) 1..``by`` gait cycles shorter with two
@@ -99,14 +91,13 @@ def shorter_loops(x: np.ndarray, repeated: np.ndarray, budget: int, top: int = T
     if length >= budget or length == 0:
         return np.empty((0,) + x.shape, dtype=np.int64)
     where = slots(x, budget)
-    steps = repeated[x[:, 0], x[:, 1]]
     target = loop_moves(x, repeated)
     values = repeated[_VALUES[:, 0], _VALUES[:, 1]]  # (V, 2)
     out = []
     for i, a in enumerate(where):
-        before = _compose_all(steps[:a])
+        before = loop_moves(x[:a], repeated)
         for b in where[i + 1:]:
-            middle, after = _compose_all(steps[a + 1:b]), _compose_all(steps[b + 1:])
+            middle, after = loop_moves(x[a + 1:b], repeated), loop_moves(x[b + 1:], repeated)
             now = int(x[a, 1] + x[b, 1])
             parts = [_pairs_summing_to(t) for t in range(max(0, now - by), now)]
             if not parts:
