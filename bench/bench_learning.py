@@ -77,6 +77,9 @@ METHODS = {
     # the default without trying shorter loops of a stalled chain's sweep (the default before
     # it, pac_host.search.shorten)
     "no_shorten": replace(profiles.apply("default", PALConfig()), shorten_after=0),
+    # the default shortening loops by two genes only (the default before windows of four,
+    # pac_host.search.shorten.shorter_windows)
+    "no_windows": replace(profiles.apply("default", PALConfig()), shorten_windows=False),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find

@@ -170,6 +170,9 @@ class PALConfig:
     # shorter loops of its sweep, two genes re-set so the pass ends where it did
     # (pac_host.search.shorten); 0: never
     shorten_after: int = 0
+    # whether those shorter loops include re-set windows of four consecutive genes
+    # (pac_host.search.shorten.shorter_windows)
+    shorten_windows: bool = False
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -495,7 +498,8 @@ class _AnytimeSearch:
             cancelled=lambda: self.cancelled or not self.walking.is_set(), chain=carried,
             placement=self.cfg.placement_error(),
             models=_pooled_models(self.state.models, self.cfg),
-            length_cost=self.cfg.kick_length_cost, shorten_after=self.cfg.shorten_after)
+            length_cost=self.cfg.kick_length_cost, shorten_after=self.cfg.shorten_after,
+            windows=self.cfg.shorten_windows)
         self.chain = chain.to_json()
         self.walking_evaluations = rec["evaluations"]
         self.walking_best = rec.get("best_score", -1)
@@ -535,7 +539,8 @@ class _AnytimeSearch:
                                    models=_pooled_models(models, self.cfg),
                                    shapes=sources(*found),
                                    length_cost=self.cfg.kick_length_cost,
-                                   shorten_after=self.cfg.shorten_after)
+                                   shorten_after=self.cfg.shorten_after,
+                                   windows=self.cfg.shorten_windows)
 
         self.pop, rec, chain = search(self.rng, carried, (self.pop[0], operational))
         self.chain = chain.to_json()
@@ -547,7 +552,8 @@ class _AnytimeSearch:
                                              self.cfg.budget, effects, self.cfg.search,
                                              placement=self.cfg.placement_error(),
                                              length_cost=self.cfg.kick_length_cost,
-                                             shorten_after=self.cfg.shorten_after)
+                                             shorten_after=self.cfg.shorten_after,
+                                             windows=self.cfg.shorten_windows)
             self.chain["explore"] = found[0].tolist()
             self.record.update(explore=format_turn_cycle(found[0]),
                                explore_evaluations=done["evaluations"])

@@ -19,7 +19,8 @@
   the same sweep in fewer gait cycles is walked more times in the budget; on noisy_rows 22/30
   runs end at 95% of the best known against 16/30 without it, no robot lower; docs/search.md).
   A chain that has kicked five times without progress tries shorter loops of its sweep, two
-  genes re-set so the pass ends where it did (``shorten_after``, :mod:`pac_host.search.shorten`).
+  genes re-set so the pass ends where it did (``shorten_after``, :mod:`pac_host.search.shorten`),
+  and if none climbs higher, four consecutive genes re-set (``shorten_windows``).
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -38,7 +39,7 @@ PROFILES: dict[str, dict] = {
     "paper": {**PAPER, "search": "cga"},
     "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin",
                 "explore": 0.25, "search_chains": 8, "kick_length_cost": SHORTER,
-                "shorten_after": SHORTEN_AFTER},
+                "shorten_after": SHORTEN_AFTER, "shorten_windows": True},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

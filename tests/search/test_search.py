@@ -372,18 +372,19 @@ def test_search_variants_bench_compares_costs_seed_for_seed(tmp_path, capsys):
     assert out["a"] == {"finals": [40, 41, 42], "mean": 41.0}
     assert (out["b"]["higher"], out["b"]["lower"], out["b"]["mean"]) == (1, 1, 40.667)
     res = search_variants.main(["--robots", "shifted", "--evaluations", "3000", "--seeds",
-                                "0-1", "--shorten-after", "0,1", "--jobs", "1",
+                                "0-1", "--shorten-after", "0,1", "--windows", "0,1", "--jobs", "1",
                                 "--out", str(tmp_path / "v.json")])
     again = search_variants.one_run("shifted", str(tmp_path / "v.shifted.shapes.json"), 1,
-                                    3000, 1, 1.0, 1)
+                                    3000, 1, 1.0, 1, False)
     by = res["robots"]["shifted"]
-    assert set(by) == {search_variants.label(c, k) for c in (0, 1) for k in (0, 1)}
-    assert by["cost 1, shorten after 1"]["finals"][1] == again  # seed for seed
+    assert set(by) == {search_variants.label(c, k, w) for c in (0, 1) for k in (0, 1)
+                       for w in (False, True)}
+    assert by["cost 1, shorten after 1, pairs only"]["finals"][1] == again  # seed for seed
     assert res["pooled"]["cost 0, shorten after 0"]["finals"] == by["cost 0, shorten after 0"][
         "finals"]
     for bad in (["--robots", "nobody"], ["--seeds", "5-2"], ["--kick-length-costs", "0,-1"],
                 ["--kick-length-costs", "0,0"], ["--shorten-after", "-1"],
-                ["--shorten-after", "1.5"]):
+                ["--shorten-after", "1.5"], ["--windows", "2"], ["--windows", "1,1"]):
         with pytest.raises(SystemExit) as e:
             search_variants.main([*bad, "--out", str(tmp_path / "b.json")])
         assert e.value.code == 2

@@ -98,7 +98,7 @@ def test_shortening_lifts_a_stalled_sweep_on_noisy_rows():
 def test_a_chain_tries_shorter_loops_after_so_many_stale_kicks(monkeypatch):
     seen: list[int] = []
 
-    def recording(x, score, objective, rng, sample):
+    def recording(x, score, objective, rng, sample, windows):
         seen.append(chain.stale)
         return None
 

@@ -30,7 +30,7 @@ from pac_host.search.neighbours import (
     value_indices,
 )
 from pac_host.search.shapes import Source, source_key, starts_by_source
-from pac_host.search.shorten import CLIMBS, shorter_loops
+from pac_host.search.shorten import CLIMBS, shorter_loops, shorter_windows
 
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 # What the search scores are (Objective.fingerprint): a chain carried from a run whose scores
@@ -82,6 +82,8 @@ class Objective:
     best_alone: np.ndarray | None = None  # with models: the best on the model alone
     best_alone_score: int | None = None
     t0: float = field(default_factory=time.perf_counter)
+    # loops whose shorter windows have been scored on this objective (shorten tries each once)
+    windows_tried: set = field(default_factory=set)
 
     def __post_init__(self) -> None:
         poses = (self.start_pose if self.placement is None
@@ -220,12 +222,32 @@ SAMPLE = 0.1
 
 
 def shorten(x: np.ndarray, score: int, objective: Objective, rng: np.random.Generator,
-            sample: float = SAMPLE, climbs: int = CLIMBS) -> tuple[np.ndarray, int] | None:
+            sample: float = SAMPLE, climbs: int = CLIMBS,
+            windows: bool = True) -> tuple[np.ndarray, int] | None:
     """A local optimum past ``x`` (search score ``score``) reached through a shorter loop of the
-    same sweep (:func:`pac_host.search.shorten.shorter_loops`): the proposals are scored and
-    the best ``climbs`` climbed in turn until one ends higher than ``score``; None if none
-    does (or the loop does not repeat)."""
-    proposals = shorter_loops(x, objective.loop_table(), objective.budget)
+    same sweep: two genes re-set (:func:`pac_host.search.shorten.shorter_loops`), then, if
+    none of those climbs higher and ``windows``, four consecutive genes
+    (:func:`pac_host.search.shorten.shorter_windows`, once per loop and objective: its
+    proposals take about a second to list). Each kind's proposals are scored and the best
+    ``climbs`` climbed in turn until one ends higher than ``score``; None if none does (or
+    the loop does not repeat)."""
+    table, budget = objective.loop_table(), objective.budget
+    found = _climb_best(shorter_loops(x, table, budget), score, objective, rng, sample, climbs)
+    if found is not None or not windows:
+        return found
+    key = canonical(x, budget).tobytes()
+    if key in objective.windows_tried:
+        return None
+    objective.windows_tried.add(key)
+    return _climb_best(shorter_windows(x, table, budget), score, objective, rng, sample,
+                       climbs)
+
+
+def _climb_best(proposals: np.ndarray, score: int, objective: Objective,
+                rng: np.random.Generator, sample: float,
+                climbs: int) -> tuple[np.ndarray, int] | None:
+    """Of ``proposals`` scored, the first of the best ``climbs`` whose climb ends above
+    ``score``, climbed; None if none does."""
     if not len(proposals):
         return None
     scores = objective(proposals)
@@ -288,7 +310,7 @@ class Chain:
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2, sample: float = SAMPLE,
             shapes: Sequence[Source] = (), length_cost: float = 0.0,
-            shorten_after: int = 0) -> None:
+            shorten_after: int = 0, windows: bool = True) -> None:
         """Search until the objective's budget or deadline is spent. A carried-on chain first
         re-scores and climbs its local optimum if the objective's model has changed. With
         ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
@@ -304,7 +326,8 @@ class Chain:
         ``length_cost``: the closing kicks' (:func:`pac_host.search.kicks.closing_kick`).
         ``shorten_after``: after this many kicks in a row without a higher score the chain
         tries shorter loops of its sweep (:func:`shorten`) and goes on from the first that
-        climbs higher; 0: never."""
+        climbs higher; 0: never. ``windows``: whether those include re-set windows of four
+        genes."""
         model = objective.fingerprint()
         try:
             while True:
@@ -335,7 +358,7 @@ class Chain:
                         x, score = y, s
                         self.x, self.score = x, score
                     if shorten_after and self.stale == min(shorten_after, patience):
-                        found = shorten(x, score, objective, rng, sample)
+                        found = shorten(x, score, objective, rng, sample, windows=windows)
                         if found is not None:
                             x, score = found
                             self.x, self.score, self.stale = x, score, 0
@@ -423,13 +446,14 @@ def _queued(genes, score, key=None) -> tuple[np.ndarray, int, str | None]:
 def restarts(objective: Objective, rng: np.random.Generator, patience: int,
              kick_genes: int = 2, start: np.ndarray | None = None,
              sample: float = SAMPLE, shapes: Sequence[Source] = (),
-             length_cost: float = 0.0, shorten_after: int = 0) -> None:
+             length_cost: float = 0.0, shorten_after: int = 0,
+             windows: bool = True) -> None:
     """Iterated local search from ``start`` (or the best of ``shapes`` re-expressed on the
     model, or of a short CGA run), restarted whenever it stalls for ``patience`` kicks, until
     the budget runs out (a :class:`Chain` run to the end); the best is ``objective.best``."""
     Chain(start, starts=int(start is not None)).run(objective, rng, patience, kick_genes,
                                                     sample, shapes, length_cost,
-                                                    shorten_after)
+                                                    shorten_after, windows)
 
 
 def cga_start(objective: Objective, rng: np.random.Generator,

@@ -62,6 +62,8 @@ class OptimizeConfig:
     # kicks without progress after which a chain tries shorter loops of its sweep
     # (pac_host.search.shorten; 0: never)
     shorten_after: int = SHORTEN_AFTER
+    # whether shortening also re-sets windows of four consecutive genes (shorten.shorter_windows)
+    shorten_windows: bool = True
     sample: float = SAMPLE  # share of a gene's any-change neighbourhood a climb scores a look
     placement: PlacementError | None = None  # score from a stencil of start poses
     # sweeps known to be good, re-expressed on the model as each chain's first start
@@ -97,7 +99,7 @@ def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig
                           placement=cfg.placement)
     restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample,
              shapes=shapes.load(cfg.shapes).sources(), length_cost=cfg.kick_length_cost,
-             shorten_after=cfg.shorten_after)
+             shorten_after=cfg.shorten_after, windows=cfg.shorten_windows)
     # chains are ranked by score: the best's coverage score, or its pooled search score when
     # the walks are from a placement's stencil
     score = objective.best_score if cfg.placement is None else objective.best_search_score
