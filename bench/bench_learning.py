@@ -9,9 +9,9 @@ oracle (the same CGA on the robot's true table).
 
 Targets (the issue's, for the default method, on every robot, 30 seeds): 90% of the best known
 on at least 27 of 30 seeds with a median of at most 10 punctuations; 95% at the end on at least
-27 of 30. The default alone, 30 seeds, takes about 80 minutes a robot with ``--jobs 2`` on a
-quiet 2-core machine (82 on noisy_rows: its eight search chains a punctuation, which shorten
-stalled loops by windows of four genes; ``--search-chains 1``, the one chain of before, 10-12
+27 of 30. The default alone, 30 seeds, took 82 minutes on noisy_rows with ``--jobs 2`` on a
+quiet 2-core machine (its eight search chains a punctuation, which shorten stalled loops by
+windows of four genes; ``--search-chains 1``, the one chain of before, 10-12
 minutes); the full measurement, every method with
 full, partial and the oracle, takes hours:
 ``python bench/run.py --only learning``; ``--quick`` runs 2 seeds on each robot.
