@@ -81,6 +81,9 @@ METHODS = {
     # the default shortening loops by two genes only (the default before windows of four,
     # pac_host.search.shorten.shorter_windows)
     "no_windows": replace(profiles.apply("default", PALConfig()), shorten_windows=False),
+    # the default with each chain's find on the model before a source like the library's, so
+    # restarts climb it again (the default before library restarts)
+    "own_restarts": replace(profiles.apply("default", PALConfig()), library_restarts=False),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find

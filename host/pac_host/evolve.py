@@ -78,6 +78,7 @@ class EvolveConfig:
     kick_length_cost: float = pal.PALConfig.kick_length_cost  # runs saved before it: 0
     shorten_after: int = pal.PALConfig.shorten_after  # runs saved before it: 0
     shorten_windows: bool = pal.PALConfig.shorten_windows  # runs saved before it: False
+    library_restarts: bool = pal.PALConfig.library_restarts  # runs saved before it: False
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -108,7 +109,7 @@ class EvolveConfig:
             search_models=self.search_models, search_chains=self.search_chains,
             shapes=self.shapes, explore=self.explore,
             kick_length_cost=self.kick_length_cost, shorten_after=self.shorten_after,
-            shorten_windows=self.shorten_windows,
+            shorten_windows=self.shorten_windows, library_restarts=self.library_restarts,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

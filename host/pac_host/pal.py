@@ -173,6 +173,11 @@ class PALConfig:
     # whether those shorter loops include re-set windows of four consecutive genes
     # (pac_host.search.shorten.shorter_windows)
     shorten_windows: bool = False
+    # With an anytime search and a library: whether the search's finds on the model before
+    # only move a chain's point on the new model (True), or are sources like the library's,
+    # so a chain's own find becomes the best start its restarts climb again (False, runs
+    # saved before it)
+    library_restarts: bool = False
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -517,11 +522,17 @@ class _AnytimeSearch:
 
         library = shapes.load(self.cfg.shapes)
 
-        def sources(*found: np.ndarray) -> list:
-            """The library and turn cycles found on the model before, as sources of starts."""
-            return [] if not library.shapes else library.sources() + [
-                shapes.carried(x, self.state.models[0], self.state.model_effects)
-                for x in found]
+        def sources(*found: np.ndarray) -> tuple[list, list]:
+            """The library's sources of starts, and the turn cycles found on the model before
+            (as sources: the library's too unless ``cfg.library_restarts``); none without a
+            library."""
+            if not library.shapes:
+                return [], []
+            carried = [shapes.carried(x, self.state.models[0], self.state.model_effects)
+                       for x in found]
+            if self.cfg.library_restarts:
+                return library.sources(), carried
+            return library.sources() + carried, []
 
         rank, _ = _ranking(models, self.pop, self.cfg, effects)
         pop = self.pop[np.argsort(-rank, kind="stable")]
@@ -531,16 +542,17 @@ class _AnytimeSearch:
         explore = round(budget * self.cfg.explore) if len(models) > 1 else 0
 
         def search(rng: np.random.Generator, chain: Chain | None, found: Sequence[np.ndarray]):
-            """One chain's search of the corrected model, from its chain and the library and
-            ``found`` as sources (every chain's the same way)."""
+            """One chain's search of the corrected model, from its chain, the library and
+            ``found`` (every chain's the same way)."""
+            library_sources, carried = sources(*found)
             return anytime.advance(models[0], pop, budget - explore, rng, self.cfg.budget,
                                    effects, self.cfg.search, chain=chain,
                                    placement=self.cfg.placement_error(),
                                    models=_pooled_models(models, self.cfg),
-                                   shapes=sources(*found),
+                                   shapes=library_sources,
                                    length_cost=self.cfg.kick_length_cost,
                                    shorten_after=self.cfg.shorten_after,
-                                   windows=self.cfg.shorten_windows)
+                                   windows=self.cfg.shorten_windows, carried=carried)
 
         self.pop, rec, chain = search(self.rng, carried, (self.pop[0], operational))
         self.chain = chain.to_json()

@@ -20,7 +20,9 @@
   runs end at 95% of the best known against 16/30 without it, no robot lower; docs/search.md).
   A chain that has kicked five times without progress tries shorter loops of its sweep, two
   genes re-set so the pass ends where it did (``shorten_after``, :mod:`pac_host.search.shorten`),
-  and if none climbs higher, four consecutive genes re-set (``shorten_windows``).
+  and if none climbs higher, four consecutive genes re-set (``shorten_windows``). A chain's
+  find on the model before moves its point on the new model, but its restarts climb the
+  library's best start, not that find again (``library_restarts``).
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -39,7 +41,8 @@ PROFILES: dict[str, dict] = {
     "paper": {**PAPER, "search": "cga"},
     "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin",
                 "explore": 0.25, "search_chains": 8, "kick_length_cost": SHORTER,
-                "shorten_after": SHORTEN_AFTER, "shorten_windows": True},
+                "shorten_after": SHORTEN_AFTER, "shorten_windows": True,
+                "library_restarts": True},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

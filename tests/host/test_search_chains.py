@@ -52,10 +52,14 @@ def test_one_chain_is_the_run_it_was_and_more_chains_search_more():
     assert max(many[0]["search"]["chain_scores"]) >= one[0]["search"]["best_score"]
 
 
-def test_each_other_chain_is_given_its_own_point_and_not_the_best_chain_s(monkeypatch):
-    """Chain 0 is given the library, the population's best and the operational turn cycle as
-    sources; chains 1.. the library and their own carried point only, so they do not all
-    start again from the best chain's find (which had them end most punctuations alike)."""
+@pytest.mark.parametrize("library_restarts", [True, False])
+def test_each_other_chain_is_given_its_own_point_and_not_the_best_chain_s(monkeypatch,
+                                                                          library_restarts):
+    """Chain 0 is given the library, the population's best and the operational turn cycle;
+    chains 1.. the library and their own carried point only, so they do not all start again
+    from the best chain's find (which had them end most punctuations alike). With library
+    restarts (the default) the finds are carried, apart from the library's sources; without,
+    they are sources after the library's."""
     from pac_host.search import anytime, shapes
 
     library = len(shapes.load("builtin").sources())
@@ -65,12 +69,18 @@ def test_each_other_chain_is_given_its_own_point_and_not_the_best_chain_s(monkey
     def spy(*args, **kw):
         if kw.get("shapes"):
             chain = kw.get("chain")
+            extra = kw.get("carried", ()) if library_restarts else kw["shapes"][library:]
+            if library_restarts:
+                assert len(kw["shapes"]) == library
+            else:
+                assert not kw.get("carried")
             calls.append((None if chain is None else chain.to_json(),
-                          [genes.tolist() for genes, _ in kw["shapes"][library:]]))
+                          [genes.tolist() for genes, _ in extra]))
         return real(*args, **kw)
 
     monkeypatch.setattr(anytime, "advance", spy)
-    records, _ = run_recorded(replace(_cfg(3), shapes="builtin"))
+    cfg = replace(_cfg(3), shapes="builtin", library_restarts=library_restarts)
+    records, _ = run_recorded(cfg)
     assert len(calls) == 3 * len(records)  # three chains a punctuation, each with sources
     for k in range(len(records)):
         first, *rest = calls[3 * k: 3 * k + 3]

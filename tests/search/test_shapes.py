@@ -257,6 +257,35 @@ def test_a_carried_chain_takes_a_sweep_only_if_it_beats_its_own_point():
     assert objective.fitness(objective.best_search_score) == 46  # its own point kept
 
 
+def test_a_carried_find_moves_the_chains_point_but_restarts_climb_the_librarys_start():
+    """A chain's find on the model before, given as ``carried``, takes the chain's point on
+    the new model when it starts higher, but is not taken as a source: the origin its
+    restarts climb is the library's best start. Given as a source, it became the origin, and
+    every restart climbed the chain's own find again."""
+    table = shifted_table()
+    sources = LIB.without("shifted").sources()
+    library_best = shapes.starts_by_source(Objective(table.rows), sources)[0]
+    find = parse_turn_cycle("11:2,13:2,22:12,17:3,24:4,3:1,0:4,10:7,0:4")  # 48 on shifted
+    found = [shapes.carried(find, table.rows)]
+    find_start = shapes.starts(Objective(table.rows), found)[0]
+    assert find_start[1] > library_best[1]
+    poor = parse_turn_cycle("12:14,3:10")
+    origins = {}
+    for as_source in (False, True):
+        chain = Chain(poor, starts=1)  # a point from another model
+        objective = Objective(table.rows, limit=60_000)
+        kw = {"shapes": sources + found} if as_source else {"shapes": sources,
+                                                            "carried": found}
+        chain.run(objective, np.random.default_rng(0), 2, **kw)
+        assert objective.fitness(objective.best_search_score) >= 48  # the find was climbed
+        assert (shapes.source_key(found[0]) in chain.taken) == as_source
+        assert chain.starts > 1  # it restarted, from its origin
+        origins[as_source] = chain.origin
+    assert np.array_equal(origins[False][0], library_best[0])
+    assert origins[False][1] == library_best[1]
+    assert np.array_equal(origins[True][0], find_start[0])
+
+
 def test_pal_puts_the_librarys_best_sweep_on_the_starting_model_in_its_population():
     cfg = pal.PALConfig(search="ils", search_evaluations=1000, shapes="builtin",
                         cga_population=16)

@@ -151,6 +151,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            kick_length_cost=learn.kick_length_cost,
                            shorten_after=learn.shorten_after,
                            shorten_windows=learn.shorten_windows,
+                           library_restarts=learn.library_restarts,
                            shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)

@@ -35,7 +35,8 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
             shapes: Sequence[Source] = (),
             length_cost: float = 0.0,
             shorten_after: int = 0,
-            windows: bool = True) -> tuple[np.ndarray, dict, Chain]:
+            windows: bool = True,
+            carried: Sequence[Source] = ()) -> tuple[np.ndarray, dict, Chain]:
     """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
     ``evaluations`` None: until ``cancelled`` says stop (it must be given then).
@@ -53,7 +54,9 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     their sweeps re-expressed on this one. ``length_cost``: the closing kicks'
     (:func:`pac_host.search.kicks.closing_kick`); ``shorten_after``: the chain's
     (:meth:`pac_host.search.local.Chain.run`), and ``windows`` whether its shorter loops
-    include re-set windows of four genes.
+    include re-set windows of four genes. ``carried``: turn cycles found on earlier models, as
+    sources the chain's point on a changed model may move to but restarts never climb
+    (:meth:`pac_host.search.local.Chain.run`).
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
@@ -64,7 +67,7 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
                           placement=placement, models=models)
     if evaluations is None or evaluations > 0:
         chain.run(objective, rng, PATIENCE, shapes=shapes, length_cost=length_cost,
-                  shorten_after=shorten_after, windows=windows)
+                  shorten_after=shorten_after, windows=windows, carried=carried)
     record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}
     if objective.best is None:
         return pop, record, chain

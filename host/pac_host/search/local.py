@@ -29,7 +29,7 @@ from pac_host.search.neighbours import (
     slots,
     value_indices,
 )
-from pac_host.search.shapes import Source, source_key, starts_by_source
+from pac_host.search.shapes import Source, source_key, starts, starts_by_source
 from pac_host.search.shorten import CLIMBS, shorter_loops, shorter_windows
 
 PAIRS = -1  # stands for the neighbourhood of paired repetition changes
@@ -310,7 +310,8 @@ class Chain:
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2, sample: float = SAMPLE,
             shapes: Sequence[Source] = (), length_cost: float = 0.0,
-            shorten_after: int = 0, windows: bool = True) -> None:
+            shorten_after: int = 0, windows: bool = True,
+            carried: Sequence[Source] = ()) -> None:
         """Search until the objective's budget or deadline is spent. A carried-on chain first
         re-scores and climbs its local optimum if the objective's model has changed. With
         ``shapes`` (sweeps and the tables they were found on, :mod:`pac_host.search.shapes`),
@@ -327,7 +328,14 @@ class Chain:
         ``shorten_after``: after this many kicks in a row without a higher score the chain
         tries shorter loops of its sweep (:func:`shorten`) and goes on from the first that
         climbs higher; 0: never. ``windows``: whether those include re-set windows of four
-        genes."""
+        genes. ``carried``: turn cycles found on an earlier model (as sources): on a changed
+        model the best of their starts replaces the chain's point if it starts higher, but
+        they are neither queued nor taken, so they never become the :attr:`origin` restarts
+        climb. Taken as sources, a chain's own find was the best start on every later model
+        and each restart climbed it again: eight chains of a PAL run on the exact noisy_rows
+        table stayed on the 50s they had found (9 of 30 runs), where a fresh search of the
+        same evaluations from the library ends at 53-54 (docs/learning.md, "Restarts from
+        the library")."""
         model = objective.fingerprint()
         try:
             while True:
@@ -345,6 +353,10 @@ class Chain:
                     x, score = self.x, int(objective(self.x[None])[0])
                     if queued and self.queue[0][1] > score:
                         (x, score), self.stale = self._take(model), 0
+                        self.x = x
+                    found = starts(objective, carried) if carried else []
+                    if found and found[0][1] > score:
+                        (x, score), self.stale = found[0], 0
                         self.x = x
                 if self.model != model:
                     x, score = climb(x, score, objective, rng, sample)
