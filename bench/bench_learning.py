@@ -9,8 +9,8 @@ oracle (the same CGA on the robot's true table).
 
 Targets (the issue's, for the default method, on every robot, 30 seeds): 90% of the best known
 on at least 27 of 30 seeds with a median of at most 10 punctuations; 95% at the end on at least
-27 of 30. The default alone, 30 seeds, took 82 minutes on noisy_rows with ``--jobs 2`` on a
-quiet 2-core machine (its eight search chains a punctuation, which shorten stalled loops by
+27 of 30. The default alone, 30 seeds, took 72 minutes on noisy_rows with ``--jobs 2`` on a
+2-core machine (its eight search chains a punctuation, which shorten stalled loops by
 windows of four genes; ``--search-chains 1``, the one chain of before, 10-12
 minutes); the full measurement, every method with
 full, partial and the oracle, takes hours:
@@ -24,7 +24,9 @@ Methods ``pooled`` and ``walking_pooled`` are ``default`` and ``walking`` with e
 scored on the model and three draws from its posterior (``--search-models 4``), the model's
 own best tested beside the pooled best. Method ``closest_kicks`` is the default with closing
 kicks by closeness alone (``--kick-length-cost 0``, the default before it preferred shorter
-loops; docs/search.md).
+loops; docs/search.md). Method ``own_restarts`` is the default with each chain's find on the
+model before a source its restarts climb again (the default before ``library_restarts``;
+docs/learning.md, "Restarts from the library").
 ``--search-evaluations N`` gives every method N search evaluations a punctuation (what more
 host time buys). Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
