@@ -69,11 +69,12 @@ def test_each_other_chain_is_given_its_own_point_and_not_the_best_chain_s(monkey
     def spy(*args, **kw):
         if kw.get("shapes"):
             chain = kw.get("chain")
-            extra = kw.get("carried", ()) if library_restarts else kw["shapes"][library:]
             if library_restarts:
                 assert len(kw["shapes"]) == library
+                extra = kw.get("carried", ())
             else:
                 assert not kw.get("carried")
+                extra = kw["shapes"][library:]
             calls.append((None if chain is None else chain.to_json(),
                           [genes.tolist() for genes, _ in extra]))
         return real(*args, **kw)
@@ -91,6 +92,14 @@ def test_each_other_chain_is_given_its_own_point_and_not_the_best_chain_s(monkey
             else:
                 own = chain["x"] if chain["x"] is not None else chain["origin"][0]
                 assert extra == [own]
+
+
+def test_the_default_profile_restarts_from_the_library_and_old_runs_do_not():
+    assert profiles.apply("default", pal.PALConfig()).library_restarts
+    assert not profiles.apply("paper", pal.PALConfig()).library_restarts
+    assert not pal.PALConfig().library_restarts
+    assert not EvolveConfig().library_restarts  # a run saved before it loads without it
+    assert EvolveConfig(library_restarts=True).pal().library_restarts
 
 
 def test_the_chains_are_saved_and_resumed_bit_for_bit():
