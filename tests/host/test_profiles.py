@@ -58,6 +58,20 @@ def test_profiles_are_pal_overrides():
         profiles.apply("fast", pal.PALConfig())
 
 
+@pytest.mark.parametrize("setting", ["shorten_windows", "library_restarts"])
+def test_a_search_setting_is_on_in_the_default_profile_and_off_in_runs_saved_before_it(
+        setting):
+    """Settings added to the default's search: the paper profile and a run saved before the
+    setting existed load without it; an evolve run's config passes it to PAL."""
+    from pac_host.evolve import EvolveConfig
+
+    assert getattr(profiles.apply("default", pal.PALConfig()), setting)
+    assert not getattr(profiles.apply("paper", pal.PALConfig()), setting)
+    assert not getattr(pal.PALConfig(), setting)
+    assert not getattr(EvolveConfig(), setting)  # a run saved before it loads without it
+    assert getattr(EvolveConfig(**{setting: True}).pal(), setting)
+
+
 def test_anytime_search_in_a_worker_equals_the_search_in_line():
     """evolve runs its tests concurrently, experiment in line: without a search while walking
     (which has no budget) both spend the budget after the tests, and give the same run."""

@@ -94,14 +94,6 @@ def test_each_other_chain_is_given_its_own_point_and_not_the_best_chain_s(monkey
                 assert extra == [own]
 
 
-def test_the_default_profile_restarts_from_the_library_and_old_runs_do_not():
-    assert profiles.apply("default", pal.PALConfig()).library_restarts
-    assert not profiles.apply("paper", pal.PALConfig()).library_restarts
-    assert not pal.PALConfig().library_restarts
-    assert not EvolveConfig().library_restarts  # a run saved before it loads without it
-    assert EvolveConfig(library_restarts=True).pal().library_restarts
-
-
 def test_the_chains_are_saved_and_resumed_bit_for_bit():
     cfg = replace(_cfg(2), generations=120, shapes="builtin")
     resumed, whole, saved = resumed_and_whole(cfg, 4)

@@ -8,9 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_host import pal, profiles, robots
+from pac_host import robots
 from pac_host.coverage import parse_turn_cycle, simulate
-from pac_host.evolve import EvolveConfig
 from pac_host.model import shifted_table
 from pac_host.model.kinematics import compose_moves, loop_moves
 from pac_host.search import anytime, local
@@ -144,11 +143,3 @@ def test_the_setting_reaches_the_chains_of_anytime_pal(monkeypatch):
         anytime.advance(rows, pop, 60_000, np.random.default_rng(0), shorten_after=1,
                         windows=windows)
         assert seen and set(seen) == {windows}
-
-
-def test_the_default_profile_shortens_by_windows_and_old_runs_do_not():
-    assert profiles.apply("default", pal.PALConfig()).shorten_windows
-    assert not profiles.apply("paper", pal.PALConfig()).shorten_windows
-    assert not pal.PALConfig().shorten_windows
-    assert not EvolveConfig().shorten_windows  # a run saved before windows loads without them
-    assert EvolveConfig(shorten_windows=True).pal().shorten_windows
