@@ -26,7 +26,9 @@ own best tested beside the pooled best. Method ``closest_kicks`` is the default 
 kicks by closeness alone (``--kick-length-cost 0``, the default before it preferred shorter
 loops; docs/search.md). Method ``own_restarts`` is the default with each chain's find on the
 model before a source its restarts climb again (the default before ``library_restarts``;
-docs/learning.md, "Restarts from the library").
+docs/learning.md, "Restarts from the library"). Method ``cut_moves`` is the default with each
+chain cut where its budget runs out, mid-move (the default before ``finish_moves``;
+docs/learning.md, "Moves finished across punctuations").
 ``--search-evaluations N`` gives every method N search evaluations a punctuation (what more
 host time buys). Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
@@ -86,6 +88,9 @@ METHODS = {
     # the default with each chain's find on the model before a source like the library's, so
     # restarts climb it again (the default before library restarts)
     "own_restarts": replace(profiles.apply("default", PALConfig()), library_restarts=False),
+    # the default with each chain cut where its budget runs out, mid-move (the default before
+    # finish_moves)
+    "cut_moves": replace(profiles.apply("default", PALConfig()), finish_moves=False),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find

@@ -79,6 +79,7 @@ class EvolveConfig:
     shorten_after: int = pal.PALConfig.shorten_after  # runs saved before it: 0
     shorten_windows: bool = pal.PALConfig.shorten_windows  # runs saved before it: False
     library_restarts: bool = pal.PALConfig.library_restarts  # runs saved before it: False
+    finish_moves: bool = pal.PALConfig.finish_moves  # runs saved before it: False
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -110,6 +111,7 @@ class EvolveConfig:
             shapes=self.shapes, explore=self.explore,
             kick_length_cost=self.kick_length_cost, shorten_after=self.shorten_after,
             shorten_windows=self.shorten_windows, library_restarts=self.library_restarts,
+            finish_moves=self.finish_moves,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

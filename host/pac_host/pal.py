@@ -178,6 +178,11 @@ class PALConfig:
     # so a chain's own find becomes the best start its restarts climb again (False, runs
     # saved before it)
     library_restarts: bool = False
+    # With an anytime search: whether a chain ends the move it is in when its budget runs out
+    # and pays what it spent past it from its next budget (True), or is cut at the budget
+    # (False, runs saved before it), which lost every move costing about a budget
+    # (pac_host.search.anytime.advance)
+    finish_moves: bool = False
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -552,7 +557,8 @@ class _AnytimeSearch:
                                    shapes=library_sources,
                                    length_cost=self.cfg.kick_length_cost,
                                    shorten_after=self.cfg.shorten_after,
-                                   windows=self.cfg.shorten_windows, carried=carried)
+                                   windows=self.cfg.shorten_windows, carried=carried,
+                                   finish=self.cfg.finish_moves)
 
         self.pop, rec, chain = search(self.rng, carried, (self.pop[0], operational))
         self.chain = chain.to_json()

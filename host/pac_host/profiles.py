@@ -22,7 +22,9 @@
   genes re-set so the pass ends where it did (``shorten_after``, :mod:`pac_host.search.shorten`),
   and if none climbs higher, four consecutive genes re-set (``shorten_windows``). A chain's
   find on the model before moves its point on the new model, but its restarts climb the
-  library's best start, not that find again (``library_restarts``).
+  library's best start, not that find again (``library_restarts``). A chain whose budget
+  runs out mid-move ends the move and pays the excess from its next budget
+  (``finish_moves``): a shorter-window try costs about a punctuation's budget and was lost.
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -42,7 +44,7 @@ PROFILES: dict[str, dict] = {
     "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin",
                 "explore": 0.25, "search_chains": 8, "kick_length_cost": SHORTER,
                 "shorten_after": SHORTEN_AFTER, "shorten_windows": True,
-                "library_restarts": True},
+                "library_restarts": True, "finish_moves": True},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

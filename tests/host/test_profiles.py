@@ -58,7 +58,7 @@ def test_profiles_are_pal_overrides():
         profiles.apply("fast", pal.PALConfig())
 
 
-@pytest.mark.parametrize("setting", ["shorten_windows", "library_restarts"])
+@pytest.mark.parametrize("setting", ["shorten_windows", "library_restarts", "finish_moves"])
 def test_a_search_setting_is_on_in_the_default_profile_and_off_in_runs_saved_before_it(
         setting):
     """Settings added to the default's search: the paper profile and a run saved before the
@@ -85,15 +85,17 @@ def test_anytime_search_in_a_worker_equals_the_search_in_line():
     for concurrent in (False, True):
         rng = np.random.default_rng(5)
         state = pal.initial_state(measured_table(), rng, cfg)
-        recs = []
+        recs, owed = [], []
         for _ in range(2):
             state, rec = pal.punctuate(state, robot, rng, cfg, concurrent=concurrent)
             state, _ = pal.advance_cga(state, cfg.interval, rng, cfg)
             recs.append(rec)
-        out.append((recs, state.cga_pop.tolist(), state.models.tolist()))
+            owed.append(state.search["overrun"])
+        out.append((recs, owed, state.cga_pop.tolist(), state.models.tolist()))
     assert out[0] == out[1]
     search = out[0][0][0]["search"]
-    assert search["evaluations"] + search["explore_evaluations"] == 3000
+    # chain 0 ends the move it is in and owes the next budget what it spent past its own
+    assert search["evaluations"] + search["explore_evaluations"] == 3000 + out[0][1][0]
     assert search["explore_evaluations"] == 750  # the default's quarter on a posterior draw
 
 
@@ -128,7 +130,7 @@ def test_search_while_walking_searches_until_the_robot_has_walked_the_tests():
 
     base = replace(profiles.apply("default", pal.PALConfig(cga_population=16, model_population=8,
                                                            model_generations=2)),
-                   search_evaluations=2000)
+                   search_evaluations=2000, finish_moves=False)  # spent exactly: cut at it
     robot = SlowRobot(shifted_table())
     for walking, concurrent in ((True, True), (False, True), (True, False)):
         cfg = replace(base, search_while_walking=walking)

@@ -152,6 +152,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            shorten_after=learn.shorten_after,
                            shorten_windows=learn.shorten_windows,
                            library_restarts=learn.library_restarts,
+                           finish_moves=learn.finish_moves,
                            shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)

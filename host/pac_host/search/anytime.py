@@ -36,7 +36,8 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
             length_cost: float = 0.0,
             shorten_after: int = 0,
             windows: bool = True,
-            carried: Sequence[Source] = ()) -> tuple[np.ndarray, dict, Chain]:
+            carried: Sequence[Source] = (),
+            finish: bool = False) -> tuple[np.ndarray, dict, Chain]:
     """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
     ``evaluations`` None: until ``cancelled`` says stop (it must be given then).
@@ -56,18 +57,28 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     (:meth:`pac_host.search.local.Chain.run`), and ``windows`` whether its shorter loops
     include re-set windows of four genes. ``carried``: turn cycles found on earlier models, as
     sources the chain's point on a changed model may move to but restarts never climb
-    (:meth:`pac_host.search.local.Chain.run`).
+    (:meth:`pac_host.search.local.Chain.run`). ``finish``: the chain ends the move it is in
+    when the budget runs out, and what it spends past it is taken from the next budget it is
+    given (:attr:`~pac_host.search.local.Chain.overrun`; a budget it owes whole is skipped), so
+    over a run it spends the budgets given; cut at the budget, a move that costs about one (a
+    shorter-window try scores some 240,000 evaluations) is begun and lost every punctuation.
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
     if evaluations is None and cancelled is None:
         raise ValueError("a search without an evaluation budget needs a way to stop")
     chain = Chain(pop[0].copy(), starts=1) if chain is None else replace(chain)
-    objective = Objective(rows, budget, effects, limit=evaluations, cancelled=cancelled,
-                          placement=placement, models=models)
-    if evaluations is None or evaluations > 0:
+    limit = evaluations
+    if finish and evaluations is not None:
+        limit, chain.overrun = evaluations - chain.overrun, 0
+    objective = Objective(rows, budget, effects, limit=max(limit, 0) if limit is not None
+                          else None, cancelled=cancelled, placement=placement, models=models,
+                          finish=finish and evaluations is not None)
+    if limit is None or limit > 0:
         chain.run(objective, rng, PATIENCE, shapes=shapes, length_cost=length_cost,
                   shorten_after=shorten_after, windows=windows, carried=carried)
+    if finish and limit is not None:
+        chain.overrun = max(0, objective.evaluations - limit)  # all of it if none was run
     record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}
     if objective.best is None:
         return pop, record, chain

@@ -50,9 +50,11 @@ class Objective:
     fitness reached sooner, then fewer repeat visits), which the searches compare;
     :meth:`fitness` reads the fitness from one. ``limit`` is the number of evaluations allowed
     (None: no limit); ``deadline`` a ``time.perf_counter()`` value after which no batch starts
-    (None: none). The best turn cycle ever scored, its score (:meth:`Coverage.score`, as
-    everything outside the searches ranks turn cycles) and when it was found (evaluations,
-    seconds, fitness) are kept as a trace.
+    (None: none). With ``finish`` the limit stops no call and cuts no batch: :meth:`spent`
+    says when it is reached, and a :class:`Chain` stops at the end of the move it is in
+    (a deadline or ``cancelled`` still stops a call). The best turn cycle ever scored, its
+    score (:meth:`Coverage.score`, as everything outside the searches ranks turn cycles) and
+    when it was found (evaluations, seconds, fitness) are kept as a trace.
 
     With a ``placement`` error each turn cycle is walked from the placement's stencil of start
     poses around ``start_pose`` and the search scores are pooled over the walks
@@ -74,6 +76,7 @@ class Objective:
     cancelled: Callable[[], bool] | None = None
     placement: PlacementError | None = None
     models: np.ndarray | None = None
+    finish: bool = False  # the limit waits for the end of a move (spent), never cuts one
     evaluations: int = 0  # walks simulated
     best: np.ndarray | None = None
     best_score: int | None = None  # the best's score (Coverage.score)
@@ -120,16 +123,21 @@ class Objective:
     def remaining(self) -> int | None:
         return None if self.limit is None else self.limit - self.evaluations
 
+    def spent(self) -> bool:
+        """Whether the evaluation limit is reached (what a search with ``finish`` checks
+        between moves)."""
+        return self.limit is not None and self.evaluations >= self.limit
+
     def __call__(self, pop: np.ndarray) -> np.ndarray:
         """Search scores of turn cycles (N, 9, 2); raises :class:`Exhausted` when the budget
         is spent (a batch that would pass the evaluation limit is cut to it, so the count is
-        exact)."""
+        exact; with ``finish`` neither: the caller stops between moves)."""
         if self.deadline is not None and time.perf_counter() >= self.deadline:
             raise Exhausted
         if self.cancelled is not None and self.cancelled():
             raise Exhausted
         left = self.remaining()
-        if left is not None:
+        if left is not None and not self.finish:
             if left < self.starts:
                 raise Exhausted
             pop = pop[: left // self.starts]
@@ -306,6 +314,9 @@ class Chain:
     # scored on): a restart climbs it again, with other kicks, re-scored on a changed model,
     # unless a source, taken or not, starts higher there
     origin: tuple | None = None
+    # evaluations a run with a finishing objective spent past its limit, to be taken from the
+    # next budget (pac_host.search.anytime.advance)
+    overrun: int = 0
 
     def run(self, objective: Objective, rng: np.random.Generator, patience: int,
             kick_genes: int = 2, sample: float = SAMPLE,
@@ -339,6 +350,7 @@ class Chain:
         model = objective.fingerprint()
         try:
             while True:
+                self._stop_if_spent(objective)
                 # re-expressed once per model, where a start is to be chosen
                 if shapes and self.shaped != model and (self.x is None or self.model != model):
                     self._reshape(objective, shapes, model)
@@ -362,6 +374,7 @@ class Chain:
                     x, score = climb(x, score, objective, rng, sample)
                     self.x, self.score, self.model = x, score, model
                 while self.stale < patience:
+                    self._stop_if_spent(objective)
                     y = closing_kick(x, rng, kick_genes, objective.budget,
                                      objective.loop_table(), length_cost=length_cost)
                     y, s = climb(y, int(objective(y[None])[0]), objective, rng, sample)
@@ -377,6 +390,13 @@ class Chain:
                 self.x, self.model = None, None
         except Exhausted:
             pass
+
+    @staticmethod
+    def _stop_if_spent(objective: Objective) -> None:
+        """Between moves: stop once a finishing objective's limit is reached (a move is a
+        restart's climb or a kick's, with the shorter loops it may try)."""
+        if objective.finish and objective.spent():
+            raise Exhausted
 
     def _reshape(self, objective: Objective, shapes: Sequence[Source], model: str) -> None:
         """Re-express every source on ``model``: the ones not yet taken queue up; the best
@@ -431,7 +451,8 @@ class Chain:
                 "queue": [[g.tolist(), s, k] for g, s, k in self.queue],
                 "taken": list(self.taken),
                 "origin": None if self.origin is None else [
-                    self.origin[0].tolist(), self.origin[1], self.origin[2]]}
+                    self.origin[0].tolist(), self.origin[1], self.origin[2]],
+                "overrun": self.overrun}
 
     @classmethod
     def from_json(cls, doc: dict) -> Chain:
@@ -442,7 +463,8 @@ class Chain:
                    None if doc.get("shaped") is None else str(doc["shaped"]),
                    [_queued(*q) for q in doc.get("queue") or []],
                    [str(k) for k in doc.get("taken") or []],
-                   None if doc.get("origin") is None else _origin(*doc["origin"]))
+                   None if doc.get("origin") is None else _origin(*doc["origin"]),
+                   int(doc.get("overrun", 0)))
 
 
 def _origin(genes, score, model) -> tuple[np.ndarray, int, str]:
