@@ -68,16 +68,14 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     if evaluations is None and cancelled is None:
         raise ValueError("a search without an evaluation budget needs a way to stop")
     chain = Chain(pop[0].copy(), starts=1) if chain is None else replace(chain)
-    limit = evaluations
-    if finish and evaluations is not None:
-        limit, chain.overrun = evaluations - chain.overrun, 0
-    objective = Objective(rows, budget, effects, limit=max(limit, 0) if limit is not None
-                          else None, cancelled=cancelled, placement=placement, models=models,
-                          finish=finish and evaluations is not None)
+    finish = finish and evaluations is not None  # a search without a budget is cut anyway
+    limit = evaluations - chain.overrun if finish else evaluations
+    objective = Objective(rows, budget, effects, limit=None if limit is None else max(limit, 0),
+                          cancelled=cancelled, placement=placement, models=models, finish=finish)
     if limit is None or limit > 0:
         chain.run(objective, rng, PATIENCE, shapes=shapes, length_cost=length_cost,
                   shorten_after=shorten_after, windows=windows, carried=carried)
-    if finish and limit is not None:
+    if finish:
         chain.overrun = max(0, objective.evaluations - limit)  # all of it if none was run
     record = {"evaluations": objective.evaluations, "stale_kicks": chain.stale}
     if objective.best is None:
