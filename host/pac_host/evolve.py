@@ -26,8 +26,10 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from types import UnionType
+from typing import get_args, get_type_hints
 
 import numpy as np
 
@@ -200,8 +202,36 @@ def load_config(root: Path) -> EvolveConfig:
         raise InputError(f"{d.config}: not JSON ({e})") from None
     if doc.get("format") != CONFIG_FORMAT:
         raise InputError(f"{d.config}: not a {CONFIG_FORMAT} file")
-    names = {f.name for f in fields(EvolveConfig)}
-    return EvolveConfig(**{k: v for k, v in doc.items() if k in names})
+    hints = get_type_hints(EvolveConfig)
+    values = {k: v for k, v in doc.items() if k in hints}
+    for name, value in values.items():
+        if not _is_a(value, hints[name]):
+            raise InputError(f"{d.config}: {name} must be {_type_words(hints[name])}, "
+                             f"got {value!r}")
+    return EvolveConfig(**values)
+
+
+def _is_a(value: object, hint: object) -> bool:
+    """Whether a JSON value fits a config field's type (JSON has no int/bool split: a bool
+    is not a number here, and an integer is a float)."""
+    if isinstance(hint, UnionType):
+        return any(_is_a(value, h) for h in get_args(hint))
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    return isinstance(value, hint)
+
+
+def _type_words(hint: object) -> str:
+    if isinstance(hint, UnionType):
+        return " or ".join(_type_words(h) for h in get_args(hint))
+    return {bool: "true or false", int: "an integer", float: "a number", str: "a string",
+            dict: "an object", type(None): "null"}[hint]
 
 
 def _resume(d: EvolveDir) -> tuple[pal.PALState, np.random.Generator, bool]:

@@ -125,6 +125,31 @@ def test_bad_input_is_one_line(tmp_path):
     one_line(invoke("evolve", "--out", str(tmp_path / "used")), 2, "use --resume")
 
 
+def test_a_resumed_config_of_the_wrong_type_is_one_line(baseline, tmp_path):
+    """A hand-edited config.json is checked field by field against its type before the run
+    resumes; the run's files stay as they were."""
+    import shutil
+
+    for name, value, words in (("finish_moves", "yes", "finish_moves must be true or false"),
+                               ("explore", "x", "explore must be a number"),
+                               ("generations", 40.5, "generations must be an integer"),
+                               ("interval", True, "interval must be an integer"),
+                               ("model_generations", "a", "an integer or null"),
+                               ("robot", [], "robot must be an object")):
+        out = tmp_path / name
+        shutil.copytree(baseline, out)
+        doc = json.loads((out / "config.json").read_text())
+        doc[name] = value
+        (out / "config.json").write_text(json.dumps(doc))
+        before = {p.name: p.read_bytes() for p in out.iterdir()}
+        res = invoke("evolve", "--resume", str(out))
+        assert res.exit_code == 2, res.output
+        last = res.output.strip().splitlines()[-1]
+        assert last.startswith("pac-host: error:") and words in last, res.output
+        assert "Traceback" not in res.output
+        assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
 def test_evolve_against_a_pac_sim_process_with_its_tracker(baseline, tmp_path):
     """The real-robot path: --port and --observer, here a separate pac-sim process whose world
     is placed through its tracker (--placer tracker) instead of by a person."""
