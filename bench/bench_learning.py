@@ -28,7 +28,10 @@ loops; docs/search.md). Method ``own_restarts`` is the default with each chain's
 model before a source its restarts climb again (the default before ``library_restarts``;
 docs/learning.md, "Restarts from the library"). Method ``cut_moves`` is the default with each
 chain cut where its budget runs out, mid-move (the default before ``finish_moves``;
-docs/learning.md, "Moves finished across punctuations").
+docs/learning.md, "Moves finished across punctuations"). Method ``fixed_effects`` is the
+default with the sequence and world effects' parameters as the structure selection estimated
+them (the default before ``refine_effects``; docs/learning.md, "Effects refitted with the
+rows").
 ``--search-evaluations N`` gives every method N search evaluations a punctuation (what more
 host time buys). Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
@@ -91,6 +94,9 @@ METHODS = {
     # the default with each chain cut where its budget runs out, mid-move (the default before
     # finish_moves)
     "cut_moves": replace(profiles.apply("default", PALConfig()), finish_moves=False),
+    # the default with the sequence and world effects' parameters as the selection estimated
+    # them (the default before refine_effects)
+    "fixed_effects": replace(profiles.apply("default", PALConfig()), refine_effects=False),
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find

@@ -82,6 +82,7 @@ class EvolveConfig:
     shorten_windows: bool = pal.PALConfig.shorten_windows  # runs saved before it: False
     library_restarts: bool = pal.PALConfig.library_restarts  # runs saved before it: False
     finish_moves: bool = pal.PALConfig.finish_moves  # runs saved before it: False
+    refine_effects: bool = pal.PALConfig.refine_effects  # runs saved before it: False
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -113,7 +114,7 @@ class EvolveConfig:
             shapes=self.shapes, explore=self.explore,
             kick_length_cost=self.kick_length_cost, shorten_after=self.shorten_after,
             shorten_windows=self.shorten_windows, library_restarts=self.library_restarts,
-            finish_moves=self.finish_moves,
+            finish_moves=self.finish_moves, refine_effects=self.refine_effects,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

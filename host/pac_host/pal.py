@@ -183,6 +183,12 @@ class PALConfig:
     # (False, runs saved before it), which lost every move costing about a budget
     # (pac_host.search.anytime.advance)
     finish_moves: bool = False
+    # With the "fit" correction: whether the sequence and world effects' parameters are fitted
+    # again with the rows on every run each punctuation (True), or kept as the structure
+    # selection estimated them on its latest runs (False, runs saved before it), whose
+    # transition off by 0.01 left a misfit that changed the predicted coverage by up to a
+    # quarter (pac_host.model_fit.refine_effects)
+    refine_effects: bool = False
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -450,7 +456,7 @@ def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult
     base = state.base or GaitTable(state.models[0], state.model_effects)
     due = model_fit.structure_due(len(observed), state.structure_runs)
     post = model_fit.correct(base, observed, rng, cfg.structure, cfg.model_config().scale,
-                             None if due else tuple(state.structure))
+                             None if due else tuple(state.structure), cfg.refine_effects)
     structure = (tuple(post.selected), len(observed)) if due else (state.structure,
                                                                     state.structure_runs)
     size = cfg.model_population

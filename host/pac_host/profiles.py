@@ -25,6 +25,9 @@
   library's best start, not that find again (``library_restarts``). A chain whose budget
   runs out mid-move ends the move and pays the excess from its next budget
   (``finish_moves``): a shorter-window try costs about a punctuation's budget and was lost.
+  Each punctuation's correction fits the sequence and world effects' parameters again with the
+  rows on every run (``refine_effects``): the selection's estimate from its latest runs left
+  the rows a misfit that moved the predicted coverage by blocks.
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -44,7 +47,7 @@ PROFILES: dict[str, dict] = {
     "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin",
                 "explore": 0.25, "search_chains": 8, "kick_length_cost": SHORTER,
                 "shorten_after": SHORTEN_AFTER, "shorten_windows": True,
-                "library_restarts": True, "finish_moves": True},
+                "library_restarts": True, "finish_moves": True, "refine_effects": True},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

@@ -58,7 +58,8 @@ def test_profiles_are_pal_overrides():
         profiles.apply("fast", pal.PALConfig())
 
 
-@pytest.mark.parametrize("setting", ["shorten_windows", "library_restarts", "finish_moves"])
+@pytest.mark.parametrize("setting", ["shorten_windows", "library_restarts", "finish_moves",
+                                     "refine_effects"])
 def test_a_search_setting_is_on_in_the_default_profile_and_off_in_runs_saved_before_it(
         setting):
     """Settings added to the default's search: the paper profile and a run saved before the

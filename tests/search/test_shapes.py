@@ -371,6 +371,7 @@ def test_evolve_takes_the_library_by_default_and_keeps_it_in_its_config(tmp_path
     assert load_config(out).shapes == "builtin"
     # the default profile's search settings, kept for a resume
     assert load_config(out).library_restarts and load_config(out).finish_moves
+    assert load_config(out).refine_effects
     bad = CliRunner().invoke(main, ["evolve", "--out", str(tmp_path / "bad"), "--shapes",
                                     str(tmp_path / "missing.json")])
     assert bad.exit_code == 2 and "cannot read shapes file" in bad.output

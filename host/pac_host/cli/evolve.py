@@ -153,6 +153,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            shorten_windows=learn.shorten_windows,
                            library_restarts=learn.library_restarts,
                            finish_moves=learn.finish_moves,
+                           refine_effects=learn.refine_effects,
                            shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)
