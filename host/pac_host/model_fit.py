@@ -203,15 +203,22 @@ def _split_by_rows(stretches: list[Run], rng: np.random.Generator
 def _rows_only(base: GaitTable, runs: Sequence[Run], seq_fx: Sequence[Effect]) -> GaitTable:
     """``base`` (no table-level effects) with each row the runs use set to its least-squares
     fit to their steps under ``seq_fx``, which the result keeps."""
-    rows = base.rows
-    batch = batch_of(runs)
+    used, offsets, _ = _row_least_squares(base.rows, batch_of(runs), seq_fx)
+    rows = base.rows.copy()
+    rows[used] += offsets
+    return GaitTable(rows, tuple(seq_fx), base.name)
+
+
+def _row_least_squares(rows: np.ndarray, batch: Batch, seq_fx: Sequence[Effect]
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rows the steps use (mask), their least-squares offsets from ``rows`` under
+    ``seq_fx``, and the residual (steps, 3) those offsets leave."""
     mask = batch.mask.ravel()
     resid = step_residuals(rows, batch, seq_fx).reshape(-1, 3)[mask]
     design = row_design(batch, seq_fx).reshape(-1, N_IDS)[mask]
     used = design.any(axis=0)
-    rows = rows.copy()
-    rows[used] += np.linalg.pinv(design[:, used]) @ resid
-    return GaitTable(rows, tuple(seq_fx), base.name)
+    offsets = np.linalg.pinv(design[:, used]) @ resid
+    return used, offsets, resid - design[:, used] @ offsets
 
 
 def _split_effects(effects: Sequence[Effect]) -> tuple[list[Effect], list[Effect]]:
@@ -257,8 +264,6 @@ def refine_effects(rows: np.ndarray, batch: Batch, effects: Sequence[Effect],
             if not p.integer]
     if not free:
         return effects
-    mask = batch.mask.ravel()
-    used = np.bincount(batch.ids.ravel()[mask], minlength=N_IDS) > 0
     weight = 1.0 / np.asarray(scale, dtype=np.float64)
 
     def with_values(x: np.ndarray) -> tuple[Effect, ...]:
@@ -268,11 +273,7 @@ def refine_effects(rows: np.ndarray, batch: Batch, effects: Sequence[Effect],
         return tuple(Effect(e.name, q) for e, q in zip(effects, params, strict=True))
 
     def misfit(x: np.ndarray) -> np.ndarray:
-        fx = with_values(x)
-        resid = step_residuals(rows, batch, fx).reshape(-1, 3)[mask]
-        design = row_design(batch, fx).reshape(-1, N_IDS)[mask][:, used]
-        coef = np.linalg.lstsq(design, resid, rcond=None)[0]
-        return ((resid - design @ coef) * weight).ravel()
+        return (_row_least_squares(rows, batch, with_values(x))[2] * weight).ravel()
 
     lo = np.array([p.lo for _, p in free])
     hi = np.array([p.hi for _, p in free])
