@@ -28,8 +28,7 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from types import UnionType
-from typing import get_args, get_type_hints
+from typing import get_type_hints
 
 import numpy as np
 
@@ -42,6 +41,7 @@ from pac_host.model.table import GaitTable, resolve_table, save_table
 from pac_host.pal import model_generations_for
 from pac_host.robot.connect import Connection
 from pac_host.robot.linked import AppendLog, LinkedRobot
+from pac_host.typed_values import coerce
 
 CONFIG_FORMAT = "pac-evolve-config/1"
 
@@ -204,35 +204,8 @@ def load_config(root: Path) -> EvolveConfig:
     if doc.get("format") != CONFIG_FORMAT:
         raise InputError(f"{d.config}: not a {CONFIG_FORMAT} file")
     hints = get_type_hints(EvolveConfig)
-    values = {k: v for k, v in doc.items() if k in hints}
-    for name, value in values.items():
-        if not _is_a(value, hints[name]):
-            raise InputError(f"{d.config}: {name} must be {_type_words(hints[name])}, "
-                             f"got {value!r}")
-    return EvolveConfig(**values)
-
-
-def _is_a(value: object, hint: object) -> bool:
-    """Whether a JSON value fits a config field's type (JSON has no int/bool split: a bool
-    is not a number here, and an integer is a float)."""
-    if isinstance(hint, UnionType):
-        return any(_is_a(value, h) for h in get_args(hint))
-    if hint is type(None):
-        return value is None
-    if hint is bool:
-        return isinstance(value, bool)
-    if hint is int:
-        return isinstance(value, int) and not isinstance(value, bool)
-    if hint is float:
-        return isinstance(value, int | float) and not isinstance(value, bool)
-    return isinstance(value, hint)
-
-
-def _type_words(hint: object) -> str:
-    if isinstance(hint, UnionType):
-        return " or ".join(_type_words(h) for h in get_args(hint))
-    return {bool: "true or false", int: "an integer", float: "a number", str: "a string",
-            dict: "an object", type(None): "null"}[hint]
+    return EvolveConfig(**{k: coerce(v, hints[k], f"{d.config}: {k}")
+                           for k, v in doc.items() if k in hints})
 
 
 def _resume(d: EvolveDir) -> tuple[pal.PALState, np.random.Generator, bool]:

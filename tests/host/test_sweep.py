@@ -243,7 +243,7 @@ def test_a_worker_killed_mid_sweep_loses_nothing(cluster, serial, sweep_file, tm
     ("[grid]\nmethods = ['full']\nbogus = [1]\n", [], "unknown setting 'bogus'"),
     ("[settings]\nseeds = 2\n[grid]\nmethods = []\n", [], "methods has no values"),
     ("[settings]\nseeds = 2\n", [], "no cells"),
-    ("[grid]\nbudget = ['x']\n", [], "setting 'budget' takes int, got 'x'"),
+    ("[grid]\nbudget = ['x']\n", [], "setting 'budget' must be an integer, got 'x'"),
     ("[grid]\nmethods = ['half']\n", [], "--methods takes full"),
     ("[grid]\nactual = ['nope.json']\n", [], "nope.json: cannot read"),
     ("[grid\n", [], "not valid TOML"),

@@ -18,7 +18,6 @@ False
 from __future__ import annotations
 
 import difflib
-import types
 import typing
 from collections.abc import Iterator
 from dataclasses import fields, is_dataclass, replace
@@ -27,6 +26,7 @@ from typing import Any
 
 from pac_host.errors import InputError
 from pac_host.experiment import ExperimentConfig
+from pac_host.typed_values import coerce
 
 TABLE_SETTINGS = {"actual": "shifted", "model": "measured", "effects": ()}
 
@@ -94,60 +94,14 @@ def canonical_name(key: str) -> str:
     return min((n for n, p in names.items() if p == path), key=len)
 
 
-def _describe(hint: Any) -> str:
-    return getattr(hint, "__name__", None) or str(hint).replace("typing.", "")
-
-
-def coerce(value: Any, hint: Any, key: str) -> Any:
-    """``value`` (as TOML gives it) as the type ``hint`` wants; JSON-friendly lists for tuples."""
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    bad = InputError(f"setting {key!r} takes {_describe(hint)}, got {value!r}")
-    if origin in (types.UnionType, typing.Union):
-        for a in args:
-            if a is type(None):
-                continue
-            try:
-                return coerce(value, a, key)
-            except InputError:
-                pass
-        raise bad
-    if origin is tuple:
-        if isinstance(value, str) and args and args[0] is str:
-            value = [v.strip() for v in value.split(",") if v.strip()]
-        if not isinstance(value, list | tuple):
-            raise bad
-        if len(args) == 2 and args[1] is Ellipsis:
-            return [coerce(v, args[0], key) for v in value]
-        if args and len(args) != len(value):
-            raise bad
-        return [coerce(v, a, key) for v, a in zip(value, args or [Any] * len(value),
-                                                     strict=True)]
-    if hint is bool:
-        if not isinstance(value, bool):
-            raise bad
-        return value
-    if hint is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise bad
-        return value
-    if hint is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise bad
-        return float(value)
-    if hint is str:
-        if not isinstance(value, str):
-            raise bad
-        return value
-    return value
-
-
 def check_value(key: str, value: Any) -> Any:
     """A setting's value, checked and in its JSON form (``key`` is canonical)."""
     if key in ("actual", "model"):
-        return coerce(value, str, key)
+        return coerce(value, str, f"setting {key!r}")
     if key == "effects":
-        return coerce(value, tuple[str, ...], key) if not isinstance(value, str) else [value]
-    return coerce(value, _field_types()[setting_names()[key]], key)
+        return (coerce(value, tuple[str, ...], f"setting {key!r}") if not isinstance(value, str)
+                else [value])
+    return coerce(value, _field_types()[setting_names()[key]], f"setting {key!r}")
 
 
 def _set(obj: Any, path: Path_, value: Any) -> Any:
