@@ -10,9 +10,10 @@ import pytest
 
 from pac_host import robots
 from pac_host.coverage import parse_turn_cycle, simulate
-from pac_host.model import shifted_table
+from pac_host.model import measured_table, shifted_table
 from pac_host.model.kinematics import compose_moves, loop_moves
 from pac_host.search import anytime, local
+from pac_host.search import shorten as shorten_mod
 from pac_host.search.kicks import WEIGHT, loop_table
 from pac_host.search.local import Objective, climb, shorten
 from pac_host.search.neighbours import _VALUES, canonical
@@ -143,3 +144,84 @@ def test_the_setting_reaches_the_chains_of_anytime_pal(monkeypatch):
         anytime.advance(rows, pop, 60_000, np.random.default_rng(0), shorten_after=1,
                         windows=windows)
         assert seen and set(seen) == {windows}
+
+
+# -- the compiled search for matching pairs against SciPy's KD-trees ---------------------------
+
+def _tables():
+    return {"shifted": shifted_table().rows, "noisy_rows": robots.build("noisy_rows").rows,
+            # the measured table has equal rows (15 and 31, 27 and 29): equal distances
+            "measured": measured_table().rows}
+
+
+def _sorted_pairs(found: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    f, b = found
+    return np.stack([f, b])[:, np.lexsort((b, f))]
+
+
+@pytest.mark.parametrize("name, tolerance, longest", [
+    ("measured", TOLERANCE, 25), ("shifted", 1.0, 25), ("noisy_rows", 40.0, 10),
+    ("shifted", 400.0, 4),  # 400: any angle is near (one cell of angles)
+])
+def test_the_compiled_matches_are_the_kd_trees_pairs_exactly(name, tolerance, longest):
+    """Every window of three loops no longer than ``longest`` (the pairs a wide tolerance
+    matches grow fast with the window)."""
+    repeated = loop_table(_tables()[name])
+    pairs = shorten_mod._pairs_for(repeated, 24, WEIGHT)
+    checked = 0
+    for loop in (LOOP, parse_turn_cycle(FIFTY[0]),
+                 parse_turn_cycle("12:1,13:1,14:1,9:1,5:1,22:1,11:1,1:1,3:2")):
+        x = canonical(loop, 200)
+        for start in range(len(x) - WINDOW + 1):
+            n = int(x[start:start + WINDOW, 1].sum())
+            if n < 2 or n > longest:
+                continue
+            target = loop_moves(x[start:start + WINDOW], repeated)
+            moves = pairs.moves[:pairs.bounds[n]]
+            back = np.conj(moves[:, 1])
+            need = np.stack([target[0] - target[1] * back * moves[:, 0], target[1] * back],
+                            axis=1)
+            args = (pairs, shorten_mod._points(need, WEIGHT), need[:, 1], n, SHORTER_BY,
+                    tolerance, WEIGHT)
+            tree = _sorted_pairs(shorten_mod._tree_matches(*args))
+            band = _sorted_pairs(shorten_mod._band_matches(*args))
+            assert np.array_equal(band, tree)  # the same pairs, none twice
+            y = [shorter_window(x, start, repeated, tolerance=tolerance, pairs=pairs,
+                                matches=m)
+                 for m in (shorten_mod._tree_matches, shorten_mod._band_matches)]
+            assert np.array_equal(y[0], y[1])
+            checked += 1
+    assert checked >= 3
+
+
+def test_equal_distances_come_in_one_order_whatever_finds_them():
+    """On a table with equal rows some re-settings are exactly as close as others; they come
+    by front pair, then back pair, so the proposals (and a chain's climbs) do not depend on
+    the order a search for pairs happens to give."""
+    repeated = loop_table(measured_table().rows)
+    x = canonical(LOOP, 200)
+    y = shorter_window(x, 1, repeated)
+    errors = _window_error(y, x, 1, repeated)
+    ties = np.flatnonzero(np.diff(errors) == 0)
+    assert len(ties) > 10
+    y_tree = shorter_window(x, 1, repeated, matches=shorten_mod._tree_matches)
+    assert np.array_equal(y, y_tree)
+
+
+def test_the_pairs_of_a_table_are_kept_for_its_next_loop():
+    repeated = loop_table(shifted_table().rows)
+    shorten_mod._pairs_kept.clear()
+    a = shorten_mod._pairs_for(repeated, 10, WEIGHT)
+    assert shorten_mod._pairs_for(repeated, 9, WEIGHT) is a  # fewer cycles: the same pairs
+    assert shorten_mod._pairs_for(repeated.copy(), a.cap, WEIGHT) is a  # same values
+    longer = shorten_mod._pairs_for(repeated, a.cap + 1, WEIGHT)
+    assert longer is not a and longer.cap > a.cap
+    other = loop_table(measured_table().rows)
+    shorten_mod._pairs_for(other, 10, WEIGHT)
+    shorten_mod._pairs_for(loop_table(robots.build("noisy_rows").rows), 10, WEIGHT)
+    assert len(shorten_mod._pairs_kept) == shorten_mod._PAIRS_KEPT
+    assert shorten_mod._pairs_for(repeated, 10, WEIGHT) is not longer  # the oldest went
+    x = canonical(LOOP, 200)
+    fresh = shorten_mod._Pairs(repeated, 30, WEIGHT)
+    assert np.array_equal(shorter_window(x, 2, repeated, pairs=fresh),
+                          shorter_window(x, 2, repeated, pairs=longer))
