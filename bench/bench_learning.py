@@ -45,6 +45,7 @@ import tempfile
 from dataclasses import replace
 from pathlib import Path
 
+import learning_records
 import numpy as np
 
 from pac_host import profiles, robots, test_selection
@@ -112,12 +113,15 @@ def actual_robots() -> dict:
 def measure(robot_names, methods, seeds: int, out_root: Path, generations: int = 1000,
             optimum_runs: int = 4, optimum_evaluations: int = 10_000_000, jobs: int = 1,
             recombination=("partial", "oracle"), search_evaluations: int | None = None,
-            search_chains: int | None = None, tests: str | None = None) -> dict:
+            search_chains: int | None = None, tests: str | None = None,
+            records: Path | None = None) -> dict:
     """Each method on each robot; the best known on a robot comes from ``optimum_runs``
     chains of ``pac-host optimize`` (whatever the method, so all are measured against the
     same, strongest, search). ``search_evaluations`` replaces every method's search budget a
     punctuation and ``search_chains`` every anytime method's chains (what more host time
-    buys); ``tests`` every method's choice of tests but the paper's."""
+    buys); ``tests`` every method's choice of tests but the paper's. ``records``: a folder of
+    recorded runs (``learning_records.py``); a robot and method without a log yet starts from
+    its record there, so only the seeds it lacks are run."""
     all_robots = actual_robots()
     out: dict = {}
     for rname in robot_names:
@@ -136,13 +140,20 @@ def measure(robot_names, methods, seeds: int, out_root: Path, generations: int =
                 lib = d / "shapes.json"
                 lib.write_text(json.dumps(shapes.load(pcfg.shapes).without(rname).to_json()))
                 pcfg = replace(pcfg, shapes=str(lib))
+            log = d / "log.jsonl"
+            recorded = (learning_records.record_path(rname, mname, records)
+                        if records is not None else None)
+            if recorded is not None and recorded.exists() and not log.exists():
+                d.mkdir(parents=True, exist_ok=True)
+                log.write_text("".join(json.dumps(r) + "\n"
+                                       for r in learning_records.read_log(recorded)))
             cfg = ExperimentConfig(
                 seeds=seeds, generations=generations, methods=tuple(recombination),
                 initial_generations=1000, optimum_runs=optimum_runs, optimum_search="optimize",
                 optimum_evaluations=optimum_evaluations, best_known=BEST_KNOWN.get(rname),
                 pal=pcfg)
             s = run_experiment(d, cfg, measured_table(), all_robots[rname], jobs,
-                               resume=(d / "log.jsonl").exists())
+                               resume=log.exists())
             rt = s["robot_time"]
             entry = {"best_known": rt["best_known"]}
             for m, fig in rt["methods"].items():
@@ -208,6 +219,9 @@ if __name__ == "__main__":
                          "(default: the method's)")
     ap.add_argument("--tests", default=None, choices=test_selection.CHOICES,
                     help="every method's tests but the paper's (default: the method's)")
+    ap.add_argument("--records", type=Path, default=None,
+                    help="start each robot and method from its recorded runs in this folder "
+                         "(bench/records: docs/learning.md's), running only the seeds missing")
     ap.add_argument("--out", default="out/bench-learning")
     a = ap.parse_args()
     res = measure(a.robots.split(","), a.methods.split(","), a.seeds, Path(a.out),
@@ -215,5 +229,5 @@ if __name__ == "__main__":
                   optimum_evaluations=a.optimum_evaluations,
                   jobs=a.jobs, recombination=tuple(a.recombination.split(",")),
                   search_evaluations=a.search_evaluations, search_chains=a.search_chains,
-                  tests=a.tests)
+                  tests=a.tests, records=a.records)
     print(json.dumps({"results": res, "targets": _targets(res, a.seeds)}, indent=1))

@@ -1,0 +1,153 @@
+"""The recorded PAL runs behind docs/learning.md's 30-seed figures, and the figures from them.
+
+A 30-seed run of one robot takes one to two hours on two cores, so the punctuation logs of the
+runs the docs quote are kept in the repository (``bench/records/learning/ROBOT-METHOD.jsonl.gz``,
+the complete runs of ``bench/bench_learning.py``'s ``log.jsonl``), with an index
+(``bench/records/learning.json``) of the commit and command that made each and the figures
+computed from it. The figures can then be checked without running PAL again
+(tests/host/test_learning_records.py recomputes them and walks every run's final turn cycle on
+the robot), and a measurement stopped part way resumes in a fresh clone: ``bench_learning.py
+--records bench/records`` starts each robot from its record, running only the seeds it lacks.
+
+Usage:
+``python bench/learning_records.py`` prints every record's figures;
+``python bench/learning_records.py save ROBOT LOG --command "..."`` records the complete runs
+of LOG (a bench_learning ``log.jsonl`` of ``--method``, the default's unless given) for ROBOT
+at this checkout's commit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pac_host.experiment import TARGET, punctuations_to, robot_time_report
+
+HERE = Path(__file__).resolve().parent
+RECORDS = HERE / "records"
+INDEX = RECORDS / "learning.json"
+GENERATIONS = 1000  # a complete run: 25 punctuations after the first
+
+
+def record_path(robot: str, method: str = "default", root: Path = RECORDS) -> Path:
+    """Where the runs of bench_learning's ``method`` on ``robot`` are recorded."""
+    return root / "learning" / f"{robot}-{method}.jsonl.gz"
+
+
+def read_log(path: Path) -> list[dict]:
+    """Punctuation records of a log, plain or gzipped."""
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt") as fh:
+        return [json.loads(line) for line in fh if line.strip()]
+
+
+def complete_runs(recs: list[dict], method: str = "partial",
+                  generations: int | None = None) -> dict[int, list[dict]]:
+    """Each seed's punctuation records, in order, for the runs that reached ``generations``
+    (:data:`GENERATIONS` if None)."""
+    generations = GENERATIONS if generations is None else generations
+    by: dict[int, list[dict]] = {}
+    for r in recs:
+        if r["method"] == method:
+            by.setdefault(int(r["seed"]), []).append(r)
+    return {s: sorted(rs, key=lambda r: r["generation"]) for s, rs in sorted(by.items())
+            if any(r["generation"] >= generations for r in rs)}
+
+
+def figures(runs: dict[int, list[dict]], best_known: int) -> dict:
+    """What docs/learning.md quotes of a robot's runs: the issue's targets (90% of the best
+    known reached, by how many punctuations; 95% at the end), through the experiment's own
+    :func:`~pac_host.experiment.robot_time_report`, and by seed the finals, the punctuations
+    to 90% and the later punctuations whose three tests the model predicted exactly."""
+    rows = []
+    for seed, rs in runs.items():
+        coverage = [r["operational_fitness"] for r in rs]
+        rows.append({"seed": seed, "method": "partial", "coverage": coverage,
+                     "robot_hours": np.round(np.cumsum([r.get("robot_seconds", 0.0)
+                                                        for r in rs]) / 3600.0, 4).tolist(),
+                     "punctuations_to_target": punctuations_to(coverage, TARGET * best_known)})
+    report = robot_time_report(rows, best_known)["methods"].get("partial", {})
+    exact = [sum(all(p["fitness"] == o["fitness"] for p, o in zip(r["predicted"], r["observed"],
+                                                                   strict=True))
+                 for r in rs[1:]) for rs in runs.values()]
+    finals = [row["coverage"][-1] for row in rows]
+    return {"seeds": len(rows), "best_known": best_known,
+            "reached_90": report.get("reached_target", 0),
+            "median_punctuations_to_90": report.get("median_punctuations_to_target"),
+            "punctuations_to_90_range": report.get("punctuations_to_target_range"),
+            "median_robot_hours_to_90": report.get("median_robot_hours_to_target"),
+            "ended_at_95": report.get("ended_at_final_target", 0),
+            "final_mean": round(float(np.mean(finals)), 2) if finals else None,
+            "finals": finals,
+            "punctuations_to_90": [row["punctuations_to_target"] for row in rows],
+            "median_exact_predictions": float(np.median(exact)) if exact else None,
+            "later_punctuations": len(next(iter(runs.values()))) - 1 if runs else 0}
+
+
+def index(root: Path = RECORDS) -> dict:
+    """The records' index: by ``ROBOT-METHOD``, the commit, command, log and figures."""
+    path = root / INDEX.name
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def save(robot: str, log: Path, command: str, best_known: int, method: str = "default",
+         root: Path = RECORDS) -> dict:
+    """Record the complete runs of ``log`` (bench_learning's ``method`` on ``robot``); the
+    index, under ``ROBOT-METHOD``, gets the commit, the command and the figures."""
+    recs = read_log(log)
+    runs = complete_runs(recs)
+    keep = {(r["seed"], r["method"]) for rs in runs.values() for r in rs[:1]}
+    path = record_path(robot, method, root)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lines = [json.dumps(r) + "\n" for r in recs if (r["seed"], r["method"]) in keep]
+    with open(path, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", compresslevel=9,
+                                                mtime=0) as fh:  # the same bytes each time
+        fh.write("".join(lines).encode())
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, cwd=HERE, check=False).stdout.strip()
+    doc = index(root)
+    key = f"{robot}-{method}"
+    doc[key] = {"robot": robot, "method": method, "commit": commit, "command": command,
+                "log": str(path.relative_to(root)), "figures": figures(runs, best_known)}
+    (root / INDEX.name).write_text(json.dumps(dict(sorted(doc.items())), indent=1) + "\n")
+    return doc[key]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="what")
+    sv = sub.add_parser("save", help="record a bench_learning log's complete runs")
+    sv.add_argument("robot")
+    sv.add_argument("log", type=Path)
+    sv.add_argument("--method", default="default", help="bench_learning's method of the log")
+    sv.add_argument("--command", required=True, help="the command that made the log")
+    sv.add_argument("--best-known", type=int, default=None,
+                    help="default: bench/best_known.json's")
+    a = ap.parse_args(argv)
+    if a.what == "save":
+        if not a.log.exists():
+            ap.error(f"{a.log}: no such log")
+        known = json.loads((HERE / "best_known.json").read_text())
+        best = a.best_known or known.get(a.robot, {}).get("fitness")
+        if best is None:
+            ap.error(f"no best known for {a.robot!r}: give --best-known")
+        print(json.dumps(save(a.robot, a.log, a.command, best, a.method)["figures"], indent=1))
+        return 0
+    for key, rec in index().items():
+        f = rec["figures"]
+        print(f"{key} ({rec['commit']}): {f['seeds']} seeds, 90% of {f['best_known']} on "
+              f"{f['reached_90']} by a median of {f['median_punctuations_to_90']} punctuations "
+              f"({f['punctuations_to_90_range']}), 95% at the end on {f['ended_at_95']}, "
+              f"final mean {f['final_mean']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,127 @@
+"""The recorded PAL runs behind docs/learning.md's 30-seed figures (bench/records): the figures
+are what the records give, every run's final turn cycle scores on the robot what the record
+says it walked, the issue's targets hold on them, and bench_learning resumes from a record."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parents[2] / "bench"
+sys.path.insert(0, str(BENCH))
+
+import bench_learning  # noqa: E402
+import learning_records  # noqa: E402
+
+from pac_host.coverage import parse_turn_cycle, simulate  # noqa: E402
+
+RECORDED = learning_records.index()
+
+
+def _rec(seed: int, generation: int, fitness: int, exact: bool = True) -> dict:
+    seen = {"fitness": fitness}
+    return {"seed": seed, "method": "partial", "generation": generation,
+            "operational_fitness": fitness, "robot_seconds": 1800.0,
+            "predicted": [seen] * 3, "observed": [seen if exact else {"fitness": fitness - 1}] * 3}
+
+
+def test_figures_count_the_targets_as_the_experiment_does():
+    # best known 20: 90% is 18, 95% is 19
+    curves = {0: [5, 18, 19, 20], 1: [5, 10, 17, 19], 2: [18, 18, 18, 18], 3: [1, 2, 3, 4]}
+    recs = [_rec(s, 40 * i, f, exact=(i != 1)) for s, c in curves.items()
+            for i, f in enumerate(c)]
+    runs = learning_records.complete_runs(recs, generations=120)
+    f = learning_records.figures(runs, best_known=20)
+    assert f["seeds"] == 4 and f["finals"] == [20, 19, 18, 4]
+    assert f["punctuations_to_90"] == [2, 4, 1, None]
+    assert f["reached_90"] == 3 and f["punctuations_to_90_range"] == [1, 4]
+    assert f["median_punctuations_to_90"] == 3.0  # of 2, 4, 1 and never
+    assert f["ended_at_95"] == 2 and f["final_mean"] == 15.25
+    assert f["median_robot_hours_to_90"] == 1.5  # half an hour a punctuation
+    assert f["median_exact_predictions"] == 2 and f["later_punctuations"] == 3
+
+
+def test_only_complete_runs_are_recorded_and_the_bytes_do_not_depend_on_when(tmp_path):
+    recs = [_rec(0, g, 10) for g in range(0, 1001, 40)] + [_rec(1, g, 10) for g in (0, 40)]
+    log = tmp_path / "log.jsonl"
+    log.write_text("".join(json.dumps(r) + "\n" for r in recs))
+    root = tmp_path / "records"
+    entry = learning_records.save("shifted", log, "a command", 20, root=root)
+    path = learning_records.record_path("shifted", "default", root)
+    first = path.read_bytes()
+    assert [r["seed"] for r in learning_records.read_log(path)] == [0] * 26
+    assert entry["figures"]["seeds"] == 1 and entry["command"] == "a command"
+    assert learning_records.index(root)["shifted-default"]["log"] == \
+        "learning/shifted-default.jsonl.gz"
+    learning_records.save("shifted", log, "a command", 20, root=root)
+    assert path.read_bytes() == first
+
+
+def test_bench_learning_starts_a_robot_from_its_record(tmp_path, monkeypatch):
+    """Seed 0 recorded, two seeds asked: seed 0's punctuations are the record's, unchanged,
+    only seed 1 runs, and the figures count both."""
+    small = replace(bench_learning.METHODS["default"], search_chains=1,
+                    search_evaluations=20_000)
+    monkeypatch.setitem(bench_learning.METHODS, "default", small)
+    kw = dict(generations=40, optimum_runs=1, optimum_evaluations=20_000,
+              recombination=("partial",))
+    one = tmp_path / "one"
+    alone = bench_learning.measure(["shifted"], ["default"], 1, one, **kw)
+    root = tmp_path / "records"
+    monkeypatch.setattr(learning_records, "GENERATIONS", 40)
+    learning_records.save("shifted", one / "shifted" / "default" / "log.jsonl", "test", 48,
+                          root=root)
+    recorded = learning_records.read_log(learning_records.record_path("shifted", "default",
+                                                                      root))
+    ran = []
+    real = bench_learning.run_experiment
+
+    def counting(d, cfg, *a, **k):
+        ran.append(len(learning_records.read_log(d / "log.jsonl")) if (d / "log.jsonl").exists()
+                   else 0)
+        return real(d, cfg, *a, **k)
+
+    monkeypatch.setattr(bench_learning, "run_experiment", counting)
+    resumed = bench_learning.measure(["shifted"], ["default"], 2, tmp_path / "resumed",
+                                     records=root, **kw)
+    assert ran == [len(recorded)]  # it started from the record's lines
+    log = learning_records.read_log(tmp_path / "resumed" / "shifted" / "default" / "log.jsonl")
+    assert [r for r in log if r["seed"] == 0] == recorded
+    assert sorted({r["seed"] for r in log}) == [0, 1]
+    finals = resumed["shifted"]["default"]["partial"]["finals"]
+    assert len(finals) == 2 and finals[0] == alone["shifted"]["default"]["partial"]["finals"][0]
+
+
+@pytest.mark.parametrize("key", sorted(RECORDED))
+def test_a_record_gives_its_figures_and_its_runs_score_as_walked(key):
+    entry = RECORDED[key]
+    runs = learning_records.complete_runs(
+        learning_records.read_log(learning_records.RECORDS / entry["log"]))
+    assert learning_records.figures(runs, entry["figures"]["best_known"]) == entry["figures"]
+    table = bench_learning.actual_robots()[entry["robot"]]
+    finals = np.stack([parse_turn_cycle(rs[-1]["operational"]) for rs in runs.values()])
+    walked = simulate(table.rows, finals, 200, table.effects).fitness
+    assert walked.tolist() == [rs[-1]["operational_fitness"] for rs in runs.values()]
+
+
+@pytest.mark.parametrize("key", sorted(k for k, e in RECORDED.items()
+                                       if e["method"] == "default"))
+def test_the_issues_targets_hold_on_the_recorded_runs_of_the_default(key):
+    """30 seeds; 90% of the best known on 27 or more by a median of 10 punctuations or fewer;
+    95% at the end on 27 or more."""
+    f = RECORDED[key]["figures"]
+    assert f["seeds"] == 30
+    assert f["reached_90"] >= 27 and f["median_punctuations_to_90"] <= 10
+    assert f["ended_at_95"] >= 27
+
+
+def test_records_are_gzipped_json_lines():
+    for entry in RECORDED.values():
+        with gzip.open(learning_records.RECORDS / entry["log"], "rt") as fh:
+            assert json.loads(fh.readline())["method"] == "partial"
