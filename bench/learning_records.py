@@ -10,7 +10,8 @@ the robot), and a measurement stopped part way resumes in a fresh clone: ``bench
 --records bench/records`` starts each robot from its record, running only the seeds it lacks.
 
 Usage:
-``python bench/learning_records.py`` prints every record's figures;
+``python bench/learning_records.py`` prints every record's figures, ``... table`` the docs'
+markdown table of them;
 ``python bench/learning_records.py save ROBOT LOG --command "..."`` records the complete runs
 of LOG (a bench_learning ``log.jsonl`` of ``--method``, the default's unless given) for ROBOT
 at this checkout's commit.
@@ -97,9 +98,10 @@ def index(root: Path = RECORDS) -> dict:
 
 
 def save(robot: str, log: Path, command: str, best_known: int, method: str = "default",
-         root: Path = RECORDS) -> dict:
+         root: Path = RECORDS, commit: str | None = None) -> dict:
     """Record the complete runs of ``log`` (bench_learning's ``method`` on ``robot``); the
-    index, under ``ROBOT-METHOD``, gets the commit, the command and the figures."""
+    index, under ``ROBOT-METHOD``, gets the commit that made them (this checkout's if None),
+    the command and the figures."""
     recs = read_log(log)
     runs = complete_runs(recs)
     keep = {(r["seed"], r["method"]) for rs in runs.values() for r in rs[:1]}
@@ -109,14 +111,45 @@ def save(robot: str, log: Path, command: str, best_known: int, method: str = "de
     with open(path, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", compresslevel=9,
                                                 mtime=0) as fh:  # the same bytes each time
         fh.write("".join(lines).encode())
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True, cwd=HERE, check=False).stdout.strip()
+    if commit is None:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, cwd=HERE, check=False).stdout.strip()
     doc = index(root)
     key = f"{robot}-{method}"
     doc[key] = {"robot": robot, "method": method, "commit": commit, "command": command,
                 "log": str(path.relative_to(root)), "figures": figures(runs, best_known)}
     (root / INDEX.name).write_text(json.dumps(dict(sorted(doc.items())), indent=1) + "\n")
     return doc[key]
+
+
+BEGIN, END = "<!-- learning_records table -->", "<!-- end of learning_records table -->"
+
+
+def markdown(root: Path = RECORDS) -> str:
+    """The records' figures as the table docs/learning.md and the README carry (between
+    :data:`BEGIN` and :data:`END`; tests/host/test_learning_records.py checks they match)."""
+    head = ("| robot (best known) | seeds | 90% of the best known: seeds, median punctuations "
+            "(robot hours; range) | 95% at the end | final mean (range) | later punctuations "
+            "predicted exactly, median | commit |\n|---|---|---|---|---|---|---|\n")
+    rows = []
+    for rec in index(root).values():
+        f = rec["figures"]
+        med = f["median_punctuations_to_90"]
+        lo_hi = f["punctuations_to_90_range"] or ["-", "-"]
+        hours = f["median_robot_hours_to_90"]
+        rows.append(
+            f"| {rec['robot']} ({f['best_known']}) | {f['seeds']} | {f['reached_90']}/"
+            f"{f['seeds']}, {_num(med)} ({_num(hours, 2)}; {lo_hi[0]}-{lo_hi[1]}) | "
+            f"{f['ended_at_95']}/{f['seeds']} | {f['final_mean']} ({min(f['finals'])}-"
+            f"{max(f['finals'])}) | {_num(f['median_exact_predictions'])} of "
+            f"{f['later_punctuations']} | `{rec['commit']}` |")
+    return head + "\n".join(rows) + "\n"
+
+
+def _num(v: float | None, digits: int = 1) -> str:
+    if v is None:
+        return "-"
+    return str(int(v)) if float(v).is_integer() else f"{v:.{digits}f}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -127,10 +160,16 @@ def main(argv: list[str] | None = None) -> int:
     sv.add_argument("robot")
     sv.add_argument("log", type=Path)
     sv.add_argument("--method", default="default", help="bench_learning's method of the log")
+    sv.add_argument("--commit", default=None,
+                    help="the commit the runs were made with (default: this checkout's)")
     sv.add_argument("--command", required=True, help="the command that made the log")
     sv.add_argument("--best-known", type=int, default=None,
                     help="default: bench/best_known.json's")
+    sub.add_parser("table", help="the figures as the docs' markdown table")
     a = ap.parse_args(argv)
+    if a.what == "table":
+        print(markdown(), end="")
+        return 0
     if a.what == "save":
         if not a.log.exists():
             ap.error(f"{a.log}: no such log")
@@ -138,7 +177,8 @@ def main(argv: list[str] | None = None) -> int:
         best = a.best_known or known.get(a.robot, {}).get("fitness")
         if best is None:
             ap.error(f"no best known for {a.robot!r}: give --best-known")
-        print(json.dumps(save(a.robot, a.log, a.command, best, a.method)["figures"], indent=1))
+        entry = save(a.robot, a.log, a.command, best, a.method, commit=a.commit)
+        print(json.dumps(entry["figures"], indent=1))
         return 0
     for key, rec in index().items():
         f = rec["figures"]

@@ -1,0 +1,61 @@
+"""Do the recorded PAL runs (bench/records, the docs' 30-seed figures) come out again here?
+
+A run depends on its seed alone, so one recorded seed of each robot, run again on this machine
+with this checkout, must give the same punctuation records, line for line (model rows,
+tests, predictions, what the robot walked). A difference says the figures no longer describe
+this code, or that this machine's arithmetic differs from the recording one's; the first
+punctuation that differs is reported. The seed is run through bench_learning's own resume:
+the record less that seed is the log, so only it runs.
+
+Target: every record reproduced. Usage: ``python bench/run.py --only records`` (one PAL run a
+robot, two at a time: about ten minutes on two cores; ``--quick`` the first record only).
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import bench_learning
+import learning_records
+
+SEED = 0  # the seed run again
+
+
+def verify(key: str, seed: int = SEED) -> dict:
+    """Run ``seed`` of record ``key`` again; where its punctuations first differ, if they do."""
+    entry = learning_records.index()[key]
+    recs = learning_records.read_log(learning_records.RECORDS / entry["log"])
+    runs = learning_records.complete_runs(recs)
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp) / entry["robot"] / entry["method"]
+        d.mkdir(parents=True)
+        (d / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs
+                                             if r["seed"] != seed))
+        bench_learning.measure([entry["robot"]], [entry["method"]], len(runs), Path(tmp),
+                               optimum_runs=1, optimum_evaluations=1_000_000,
+                               recombination=("partial",))
+        again = learning_records.complete_runs(learning_records.read_log(d / "log.jsonl"))
+    first = next((k for k, (a, b) in enumerate(zip(runs[seed], again.get(seed, []),
+                                                   strict=False)) if a != b), None)
+    same = first is None and len(again.get(seed, [])) == len(runs[seed])
+    return {"seed": seed, "commit": entry["commit"], "reproduced": same,
+            "first_different_punctuation": first}
+
+
+def run(quick: bool = False) -> dict:
+    keys = sorted(learning_records.index())
+    if quick:
+        keys = keys[:1]
+    with ProcessPoolExecutor(2) as pool:
+        out = dict(zip(keys, pool.map(verify, keys), strict=True))
+    ok = all(r["reproduced"] for r in out.values())
+    return {"records": out, "targets": {"every_record_reproduced": {
+        "value": sum(r["reproduced"] for r in out.values()), "target": f"{len(out)}",
+        "met": ok and bool(out)}}}
+
+
+if __name__ == "__main__":
+    print(json.dumps(run(), indent=1))
