@@ -225,3 +225,15 @@ def test_the_pairs_of_a_table_are_kept_for_its_next_loop():
     fresh = shorten_mod._Pairs(repeated, 30, WEIGHT)
     assert np.array_equal(shorter_window(x, 2, repeated, pairs=fresh),
                           shorter_window(x, 2, repeated, pairs=longer))
+
+
+def test_the_pairs_of_a_long_window_are_not_kept(monkeypatch):
+    """Windows of a long loop need millions of pairs (some 100 bytes each): made for the loop,
+    then let go."""
+    repeated = loop_table(shifted_table().rows)
+    shorten_mod._pairs_kept.clear()
+    monkeypatch.setattr(shorten_mod, "_PAIRS_KEPT_AT_MOST", 100_000)
+    big = shorten_mod._pairs_for(repeated, 30, WEIGHT)
+    assert len(big.va) > 100_000 and not shorten_mod._pairs_kept
+    small = shorten_mod._pairs_for(repeated, 8, WEIGHT)
+    assert list(shorten_mod._pairs_kept.values()) == [small]

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import threading
 from collections.abc import Callable
 
 import numpy as np
@@ -189,7 +190,11 @@ class _Pairs:
 
 _PAIRS_KEPT = 2  # tables whose pairs are kept: a punctuation's model and its posterior draw
 _PAIRS_STEP = 8  # pairs are made up to a multiple of this many gait cycles, to serve more loops
+# pairs kept at most (with their cells about 120 MB, windows of up to 45 gait cycles); the longer
+# windows of a long loop have their pairs made for the loop alone, as before
+_PAIRS_KEPT_AT_MOST = 1_000_000
 _pairs_kept: dict[tuple[bytes, float], _Pairs] = {}
+_pairs_lock = threading.Lock()  # a search while the robot walks runs in a thread of its own
 
 
 def _pairs_for(repeated: np.ndarray, cap: int, weight: float) -> _Pairs:
@@ -197,16 +202,20 @@ def _pairs_for(repeated: np.ndarray, cap: int, weight: float) -> _Pairs:
     loop shortened on it: a chain tries the windows of many loops on one model (measured in
     PAL: 258 loops on 7 tables in a run's first six punctuations), and making the pairs and
     their cells took about a quarter of a loop's time. Pairs of a longer cap hold the same
-    pairs of each length, so what they find is the same."""
+    pairs of each length, so what they find is the same. At most :data:`_PAIRS_KEPT` tables'
+    pairs are kept, each of at most :data:`_PAIRS_KEPT_AT_MOST` pairs."""
     key = (hashlib.blake2b(np.ascontiguousarray(repeated).tobytes(), digest_size=16).digest(),
            float(weight))
-    pairs = _pairs_kept.pop(key, None)
-    if pairs is None or pairs.cap < cap:
-        pairs = _Pairs(repeated, -(-cap // _PAIRS_STEP) * _PAIRS_STEP, weight)
-    _pairs_kept[key] = pairs  # the latest last
-    while len(_pairs_kept) > _PAIRS_KEPT:
-        del _pairs_kept[next(iter(_pairs_kept))]
-    return pairs
+    with _pairs_lock:
+        pairs = _pairs_kept.pop(key, None)
+        if pairs is None or pairs.cap < cap:
+            pairs = _Pairs(repeated, -(-cap // _PAIRS_STEP) * _PAIRS_STEP, weight)
+        if len(pairs.va) > _PAIRS_KEPT_AT_MOST:
+            return pairs
+        _pairs_kept[key] = pairs  # the latest last
+        while len(_pairs_kept) > _PAIRS_KEPT:
+            del _pairs_kept[next(iter(_pairs_kept))]
+        return pairs
 
 
 def _points(moves: np.ndarray, weight: float) -> np.ndarray:
