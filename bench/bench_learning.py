@@ -33,7 +33,9 @@ default with the sequence and world effects' parameters as the structure selecti
 them (the default before ``refine_effects``; docs/learning.md, "Effects refitted with the
 rows").
 ``--search-evaluations N`` gives every method N search evaluations a punctuation (what more
-host time buys). Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
+host time buys). ``--records bench/records`` starts each robot and method from the runs
+recorded there (``learning_records.py``: the docs' 30-seed figures), running only the seeds
+they lack. Custom: ``python bench/bench_learning.py --seeds 3 --robots shifted,noisy_rows
 --methods paper,default``.
 """
 

@@ -101,9 +101,12 @@ def save(robot: str, log: Path, command: str, best_known: int, method: str = "de
          root: Path = RECORDS, commit: str | None = None) -> dict:
     """Record the complete runs of ``log`` (bench_learning's ``method`` on ``robot``); the
     index, under ``ROBOT-METHOD``, gets the commit that made them (this checkout's if None),
-    the command and the figures."""
+    the command and the figures, against ``best_known`` raised to the best any of the runs
+    walked (as the experiment raises it)."""
     recs = read_log(log)
     runs = complete_runs(recs)
+    best_known = max([best_known] + [r["operational_fitness"] for rs in runs.values()
+                                     for r in rs])
     keep = {(r["seed"], r["method"]) for rs in runs.values() for r in rs[:1]}
     path = record_path(robot, method, root)
     path.parent.mkdir(parents=True, exist_ok=True)

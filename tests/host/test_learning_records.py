@@ -139,3 +139,11 @@ def test_the_docs_table_is_the_records(doc):
     assert begin in text and end in text, f"{doc} has no records table"
     table = text.split(begin, 1)[1].split(end, 1)[0].strip("\n") + "\n"
     assert table == learning_records.markdown()
+
+
+def test_the_best_known_is_raised_to_the_best_a_run_walked(tmp_path):
+    recs = [_rec(0, g, 10 if g < 1000 else 22) for g in range(0, 1001, 40)]
+    log = tmp_path / "log.jsonl"
+    log.write_text("".join(json.dumps(r) + "\n" for r in recs))
+    f = learning_records.save("shifted", log, "c", 20, root=tmp_path / "r")["figures"]
+    assert f["best_known"] == 22 and f["punctuations_to_90"] == [26]
