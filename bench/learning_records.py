@@ -105,6 +105,8 @@ def save(robot: str, log: Path, command: str, best_known: int, method: str = "de
     walked (as the experiment raises it)."""
     recs = read_log(log)
     runs = complete_runs(recs)
+    if not runs:
+        raise ValueError(f"{log}: no complete run ({GENERATIONS} generations) to record")
     best_known = max([best_known] + [r["operational_fitness"] for rs in runs.values()
                                      for r in rs])
     keep = {(r["seed"], r["method"]) for rs in runs.values() for r in rs[:1]}
@@ -180,7 +182,11 @@ def main(argv: list[str] | None = None) -> int:
         best = a.best_known or known.get(a.robot, {}).get("fitness")
         if best is None:
             ap.error(f"no best known for {a.robot!r}: give --best-known")
-        entry = save(a.robot, a.log, a.command, best, a.method, commit=a.commit)
+        try:
+            entry = save(a.robot, a.log, a.command, best, a.method, commit=a.commit)
+        except ValueError as e:
+            print(f"learning_records: {e}", file=sys.stderr)
+            return 2
         print(json.dumps(entry["figures"], indent=1))
         return 0
     for key, rec in index().items():

@@ -63,6 +63,17 @@ def test_only_complete_runs_are_recorded_and_the_bytes_do_not_depend_on_when(tmp
     assert path.read_bytes() == first
 
 
+def test_a_log_with_no_complete_run_is_refused_and_nothing_is_written(tmp_path, capsys):
+    log = tmp_path / "log.jsonl"
+    log.write_text("".join(json.dumps(_rec(0, g, 10)) + "\n" for g in (0, 40)))
+    root = tmp_path / "records"
+    with pytest.raises(ValueError, match="no complete run"):
+        learning_records.save("shifted", log, "a command", 20, root=root)
+    assert not root.exists()
+    assert learning_records.main(["save", "shifted", str(log), "--command", "c"]) == 2
+    assert "no complete run" in capsys.readouterr().err
+
+
 def test_bench_learning_starts_a_robot_from_its_record(tmp_path, monkeypatch):
     """Seed 0 recorded, two seeds asked: seed 0's punctuations are the record's, unchanged,
     only seed 1 runs, and the figures count both."""
