@@ -35,6 +35,7 @@ def main() -> int:
         name = path.stem.removeprefix("bench_")
         spec = importlib.util.spec_from_file_location(path.stem, path)
         mod = importlib.util.module_from_spec(spec)
+        sys.modules[path.stem] = mod  # so a process pool's workers can pickle its functions
         spec.loader.exec_module(mod)
         t0 = time.perf_counter()
         res = mod.run(quick=args.quick)
