@@ -22,6 +22,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+import known_best
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 LAST = 3  # punctuations whose predictions must be within one block
@@ -59,7 +61,7 @@ def figures(out: Path, best_known: int) -> dict:
 
 
 def run(quick: bool = False) -> dict:
-    best = json.loads((HERE / "best_known.json").read_text())["shifted"]["fitness"]
+    best = known_best.fitness("shifted")
     args = demo_evolve_args()
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "demo-evolve"

@@ -47,6 +47,7 @@ import tempfile
 from dataclasses import replace
 from pathlib import Path
 
+import known_best
 import learning_records
 import numpy as np
 
@@ -103,9 +104,7 @@ METHODS = {
 }
 # bench/best_known.json (checked by the tests); the experiments raise these to anything
 # their own optimize chains or runs find
-BEST_KNOWN = {name: rec["fitness"] for name, rec in json.loads(
-    (Path(__file__).resolve().parent / "best_known.json").read_text()).items()
-    if isinstance(rec, dict)}
+BEST_KNOWN = known_best.fitnesses()
 
 
 def actual_robots() -> dict:

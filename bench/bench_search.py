@@ -31,6 +31,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import known_best
 import numpy as np
 
 from pac_host import robots
@@ -41,7 +42,6 @@ from pac_host.search import shapes
 from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 
 HERE = Path(__file__).resolve().parent
-BEST_KNOWN = json.loads((HERE / "best_known.json").read_text())  # raised to what runs find
 
 
 def optimize_runs(table, seeds: int, seconds: float, plot: Path) -> dict:
@@ -54,7 +54,7 @@ def optimize_runs(table, seeds: int, seconds: float, plot: Path) -> dict:
                      "evaluations": r["evaluations"], "growth": best_over_time(r["chains"])})
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
-    known = BEST_KNOWN.get(table.name, {}).get("fitness", 0)
+    known = known_best.fitness(table.name) or 0  # raised to what the runs find
     best = max([r["fitness"] for r in runs] + [known])
     reach = [next((t for t, f in r["growth"] if f >= best), None) for r in runs]
     optimize_progress([r["growth"] for r in runs], plot,

@@ -26,6 +26,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import known_best
 import numpy as np
 
 from pac_host.experiment import TARGET, punctuations_to, robot_time_report
@@ -178,8 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.what == "save":
         if not a.log.exists():
             ap.error(f"{a.log}: no such log")
-        known = json.loads((HERE / "best_known.json").read_text())
-        best = a.best_known or known.get(a.robot, {}).get("fitness")
+        best = a.best_known or known_best.fitness(a.robot)
         if best is None:
             ap.error(f"no best known for {a.robot!r}: give --best-known")
         try:
