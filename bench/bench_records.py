@@ -25,24 +25,31 @@ SEED = 0  # the seed run again
 
 
 def verify(key: str, seed: int = SEED) -> dict:
-    """Run ``seed`` of record ``key`` again; where its punctuations first differ, if they do."""
+    """Run ``seed`` of record ``key`` again (each recombination the record has); where its
+    punctuations first differ, if they do."""
     entry = learning_records.index()[key]
+    recombinations = tuple(entry.get("recombinations", ["partial"]))
     recs = learning_records.read_log(learning_records.RECORDS / entry["log"])
-    runs = learning_records.complete_runs(recs)
+    runs = {m: learning_records.complete_runs(recs, m) for m in recombinations}
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp) / entry["robot"] / entry["method"]
         d.mkdir(parents=True)
         (d / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs
                                              if r["seed"] != seed))
-        bench_learning.measure([entry["robot"]], [entry["method"]], len(runs), Path(tmp),
-                               optimum_runs=1, optimum_evaluations=1_000_000,
-                               recombination=("partial",))
-        again = learning_records.complete_runs(learning_records.read_log(d / "log.jsonl"))
-    first = next((k for k, (a, b) in enumerate(zip(runs[seed], again.get(seed, []),
-                                                   strict=False)) if a != b), None)
-    same = first is None and len(again.get(seed, [])) == len(runs[seed])
-    return {"seed": seed, "commit": entry["commit"], "reproduced": same,
-            "first_different_punctuation": first}
+        bench_learning.measure([entry["robot"]], [entry["method"]], len(runs[recombinations[0]]),
+                               Path(tmp), optimum_runs=1, optimum_evaluations=1_000_000,
+                               recombination=recombinations)
+        redone = learning_records.read_log(d / "log.jsonl")
+    out: dict = {"seed": seed, "commit": entry["commit"], "reproduced": True}
+    for m in recombinations:
+        was, again = runs[m][seed], learning_records.complete_runs(redone, m).get(seed, [])
+        first = next((k for k, (a, b) in enumerate(zip(was, again, strict=False)) if a != b),
+                     None)
+        if first is not None or len(again) != len(was):
+            out["reproduced"] = False
+            out.setdefault("first_different_punctuation", {})[m] = (
+                first if first is not None else min(len(was), len(again)))
+    return out
 
 
 def run(quick: bool = False) -> dict:

@@ -14,7 +14,10 @@ Usage:
 markdown table of them;
 ``python bench/learning_records.py save ROBOT LOG --command "..."`` records the complete runs
 of LOG (a bench_learning ``log.jsonl`` of ``--method``, the default's unless given) for ROBOT
-at this checkout's commit.
+at this checkout's commit; ``--recombinations full,partial`` records both recombinations of a
+method with the model GA (``fit_ga``), and the index then carries each one's figures and the
+paired tests of partial against full (the paper's question), which ``... comparison`` prints
+as the docs' table.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from pathlib import Path
 import known_best
 import numpy as np
 
-from pac_host.experiment import TARGET, punctuations_to, robot_time_report
+from pac_host.experiment import TARGET, partial_against_full, punctuations_to, robot_time_report
 
 HERE = Path(__file__).resolve().parent
 RECORDS = HERE / "records"
@@ -98,19 +101,38 @@ def index(root: Path = RECORDS) -> dict:
     return json.loads(path.read_text()) if path.exists() else {}
 
 
+def recombination_figures(runs: dict[int, list[dict]], best_known: int) -> dict:
+    """:func:`figures`, and what the paper's question also asks of a recombination: the final
+    model's error (mean |model - robot| over the 32 gait cycles and the seeds, forward, lateral,
+    heading) and how many gait cycles the tests had walked by the end (range over seeds)."""
+    err = np.array([[[e["F"], e["T"], e["dH"]] for e in rs[-1]["model_error"]]
+                    for rs in runs.values()])
+    walked = [len({g for r in rs for g in r["used_gait_ids"]}) for rs in runs.values()]
+    return {**figures(runs, best_known),
+            "final_model_error_FTdH": err.mean(axis=(0, 1)).round(3).tolist(),
+            "rows_walked_range": [min(walked), max(walked)]}
+
+
 def save(robot: str, log: Path, command: str, best_known: int, method: str = "default",
-         root: Path = RECORDS, commit: str | None = None) -> dict:
-    """Record the complete runs of ``log`` (bench_learning's ``method`` on ``robot``); the
-    index, under ``ROBOT-METHOD``, gets the commit that made them (this checkout's if None),
-    the command and the figures, against ``best_known`` raised to the best any of the runs
-    walked (as the experiment raises it)."""
+         root: Path = RECORDS, commit: str | None = None,
+         recombinations: tuple[str, ...] = ("partial",)) -> dict:
+    """Record the complete runs of ``log`` (bench_learning's ``method`` on ``robot``, each of
+    ``recombinations``); the index, under ``ROBOT-METHOD``, gets the commit that made them (this
+    checkout's if None), the command and the figures (partial recombination's, or the first
+    one's), against ``best_known`` raised to the best any of the runs walked (as the
+    experiment raises it). With more than one recombination the entry also has each one's
+    :func:`recombination_figures` and, given full and partial, the paired tests of
+    :func:`~pac_host.experiment.partial_against_full`."""
     recs = read_log(log)
-    runs = complete_runs(recs)
-    if not runs:
-        raise ValueError(f"{log}: no complete run ({GENERATIONS} generations) to record")
-    best_known = max([best_known] + [r["operational_fitness"] for rs in runs.values()
-                                     for r in rs])
-    keep = {(r["seed"], r["method"]) for rs in runs.values() for r in rs[:1]}
+    by = {m: complete_runs(recs, m) for m in recombinations}
+    for m, runs in by.items():
+        if not runs:
+            raise ValueError(f"{log}: no complete run ({GENERATIONS} generations) of {m} "
+                             "recombination to record")
+    best_known = max([best_known] + [r["operational_fitness"] for runs in by.values()
+                                     for rs in runs.values() for r in rs])
+    keep = {(r["seed"], r["method"]) for runs in by.values() for rs in runs.values()
+            for r in rs[:1]}
     path = record_path(robot, method, root)
     path.parent.mkdir(parents=True, exist_ok=True)
     lines = [json.dumps(r) + "\n" for r in recs if (r["seed"], r["method"]) in keep]
@@ -122,10 +144,22 @@ def save(robot: str, log: Path, command: str, best_known: int, method: str = "de
                                 text=True, cwd=HERE, check=False).stdout.strip()
     doc = index(root)
     key = f"{robot}-{method}"
+    primary = "partial" if "partial" in by else recombinations[0]
     doc[key] = {"robot": robot, "method": method, "commit": commit, "command": command,
-                "log": str(path.relative_to(root)), "figures": figures(runs, best_known)}
+                "log": str(path.relative_to(root)), "recombinations": list(recombinations),
+                "figures": figures(by[primary], best_known)}
+    if len(by) > 1:
+        doc[key]["by_recombination"] = {m: recombination_figures(runs, best_known)
+                                        for m, runs in by.items()}
+    if {"full", "partial"} <= set(by):
+        doc[key]["partial_vs_full"] = partial_against_full(*(_coverage(by[m])
+                                                             for m in ("partial", "full")))
     (root / INDEX.name).write_text(json.dumps(dict(sorted(doc.items())), indent=1) + "\n")
     return doc[key]
+
+
+def _coverage(runs: dict[int, list[dict]]) -> dict[int, list[int]]:
+    return {s: [r["operational_fitness"] for r in rs] for s, rs in runs.items()}
 
 
 BEGIN, END = "<!-- learning_records table -->", "<!-- end of learning_records table -->"
@@ -139,6 +173,8 @@ def markdown(root: Path = RECORDS) -> str:
             "predicted exactly, median | commit |\n|---|---|---|---|---|---|---|\n")
     rows = []
     for rec in index(root).values():
+        if rec["method"] != "default":
+            continue
         f = rec["figures"]
         med = f["median_punctuations_to_90"]
         lo_hi = f["punctuations_to_90_range"] or ["-", "-"]
@@ -150,6 +186,55 @@ def markdown(root: Path = RECORDS) -> str:
             f"{max(f['finals'])}) | {_num(f['median_exact_predictions'])} of "
             f"{f['later_punctuations']} | `{rec['commit']}` |")
     return head + "\n".join(rows) + "\n"
+
+
+CMP_BEGIN = "<!-- learning_records comparison -->"
+CMP_END = "<!-- end of learning_records comparison -->"
+
+
+def comparison_markdown(root: Path = RECORDS) -> str:
+    """The paper's question on the records that ran both recombinations: each one's figures,
+    the paired tests of partial against full by robot, and pooled over every robot's seeds
+    (the table docs/learning.md and the README carry between :data:`CMP_BEGIN` and
+    :data:`CMP_END`)."""
+    head = ("| robot (best known), method, seeds | recombination | finals (mean) | 90% reached, "
+            "median punctuations (robot hours) | 95% at the end | final model error (mean F, "
+            "T, dH over 32 gait cycles) | gait cycles walked by the end | partial against "
+            "full: final, mean coverage (paired Wilcoxon p); partial higher/lower |\n"
+            "|---|---|---|---|---|---|---|---|\n")
+    rows: list[str] = []
+    pooled: dict[str, dict] = {"partial": {}, "full": {}}  # by (robot, seed)
+    for rec in index(root).values():
+        if "partial_vs_full" not in rec:
+            continue
+        t = rec["partial_vs_full"]
+        runs = {m: complete_runs(read_log(root / rec["log"]), m) for m in ("partial", "full")}
+        for m, by_seed in pooled.items():
+            by_seed.update({(rec["robot"], s): c for s, c in _coverage(runs[m]).items()})
+        for m in ("full", "partial"):
+            f = rec["by_recombination"][m]
+            err = ", ".join(f"{e:g}" for e in f["final_model_error_FTdH"])
+            lo, hi = f["rows_walked_range"]
+            vs = (f"{_p(t['final_coverage_wilcoxon'])}, {_p(t['mean_coverage_wilcoxon'])}; "
+                  f"{t['final_partial_higher']}/{t['final_partial_lower']} of {t['seeds']}"
+                  if m == "partial" else "")
+            rows.append(
+                f"| {rec['robot']} ({f['best_known']}), {rec['method']}, {f['seeds']} | {m} | "
+                f"{', '.join(map(str, f['finals']))} ({f['final_mean']}) | {f['reached_90']}/"
+                f"{f['seeds']}, {_num(f['median_punctuations_to_90'])} "
+                f"({_num(f['median_robot_hours_to_90'], 2)}) | {f['ended_at_95']}/{f['seeds']} | "
+                f"{err} | {lo}-{hi} | {vs} |")
+    if not rows:
+        return head
+    t = partial_against_full(pooled["partial"], pooled["full"])
+    return (head + "\n".join(rows) + f"\n\nPooled over the {t['seeds']} seed pairs: final "
+            f"coverage {_p(t['final_coverage_wilcoxon'])}, mean coverage "
+            f"{_p(t['mean_coverage_wilcoxon'])}; partial higher on {t['final_partial_higher']}, "
+            f"lower on {t['final_partial_lower']}.\n")
+
+
+def _p(test: dict) -> str:
+    return f"p = {test['p_value']:.2g}"
 
 
 def _num(v: float | None, digits: int = 1) -> str:
@@ -171,10 +256,17 @@ def main(argv: list[str] | None = None) -> int:
     sv.add_argument("--command", required=True, help="the command that made the log")
     sv.add_argument("--best-known", type=int, default=None,
                     help="default: bench/best_known.json's")
+    sv.add_argument("--recombinations", default="partial",
+                    help="the log's recombinations to record, comma-separated (full,partial "
+                         "for a method with the model GA: the paper's question)")
     sub.add_parser("table", help="the figures as the docs' markdown table")
+    sub.add_parser("comparison", help="partial against full as the docs' markdown table")
     a = ap.parse_args(argv)
     if a.what == "table":
         print(markdown(), end="")
+        return 0
+    if a.what == "comparison":
+        print(comparison_markdown(), end="")
         return 0
     if a.what == "save":
         if not a.log.exists():
@@ -183,7 +275,8 @@ def main(argv: list[str] | None = None) -> int:
         if best is None:
             ap.error(f"no best known for {a.robot!r}: give --best-known")
         try:
-            entry = save(a.robot, a.log, a.command, best, a.method, commit=a.commit)
+            entry = save(a.robot, a.log, a.command, best, a.method, commit=a.commit,
+                         recombinations=tuple(a.recombinations.split(",")))
         except ValueError as e:
             print(f"learning_records: {e}", file=sys.stderr)
             return 2

@@ -20,15 +20,20 @@ import bench_learning  # noqa: E402
 import learning_records  # noqa: E402
 
 from pac_host.coverage import parse_turn_cycle, simulate  # noqa: E402
+from pac_host.experiment import partial_against_full  # noqa: E402
 
 RECORDED = learning_records.index()
 
 
-def _rec(seed: int, generation: int, fitness: int, exact: bool = True) -> dict:
+def _rec(seed: int, generation: int, fitness: int, exact: bool = True,
+         method: str = "partial", error: float = 0.0, walked: tuple[int, ...] = (0,)) -> dict:
     seen = {"fitness": fitness}
-    return {"seed": seed, "method": "partial", "generation": generation,
+    return {"seed": seed, "method": method, "generation": generation,
             "operational_fitness": fitness, "robot_seconds": 1800.0,
-            "predicted": [seen] * 3, "observed": [seen if exact else {"fitness": fitness - 1}] * 3}
+            "predicted": [seen] * 3, "observed": [seen if exact else {"fitness": fitness - 1}] * 3,
+            "model_error": [{"id": i, "F": error, "T": 2 * error, "dH": 3 * error}
+                            for i in range(32)],
+            "used_gait_ids": list(walked)}
 
 
 def test_figures_count_the_targets_as_the_experiment_does():
@@ -112,13 +117,74 @@ def test_bench_learning_starts_a_robot_from_its_record(tmp_path, monkeypatch):
 @pytest.mark.parametrize("key", sorted(RECORDED))
 def test_a_record_gives_its_figures_and_its_runs_score_as_walked(key):
     entry = RECORDED[key]
-    runs = learning_records.complete_runs(
-        learning_records.read_log(learning_records.RECORDS / entry["log"]))
-    assert learning_records.figures(runs, entry["figures"]["best_known"]) == entry["figures"]
+    recs = learning_records.read_log(learning_records.RECORDS / entry["log"])
+    runs = learning_records.complete_runs(recs)
+    best = entry["figures"]["best_known"]
+    assert learning_records.figures(runs, best) == entry["figures"]
     table = bench_learning.actual_robots()[entry["robot"]]
-    finals = np.stack([parse_turn_cycle(rs[-1]["operational"]) for rs in runs.values()])
-    walked = simulate(table.rows, finals, 200, table.effects).fitness
-    assert walked.tolist() == [rs[-1]["operational_fitness"] for rs in runs.values()]
+    for m in entry.get("recombinations", ["partial"]):
+        runs = learning_records.complete_runs(recs, m)
+        if "by_recombination" in entry:
+            assert learning_records.recombination_figures(runs, best) == \
+                entry["by_recombination"][m]
+        finals = np.stack([parse_turn_cycle(rs[-1]["operational"]) for rs in runs.values()])
+        walked = simulate(table.rows, finals, 200, table.effects).fitness
+        assert walked.tolist() == [rs[-1]["operational_fitness"] for rs in runs.values()]
+
+
+@pytest.mark.parametrize("key", sorted(k for k, e in RECORDED.items() if "partial_vs_full" in e))
+def test_a_comparison_record_gives_its_tests(key):
+    """The paired tests of partial against full in the index are those of its log's runs."""
+    entry = RECORDED[key]
+    recs = learning_records.read_log(learning_records.RECORDS / entry["log"])
+    cov = [{s: [r["operational_fitness"] for r in rs]
+            for s, rs in learning_records.complete_runs(recs, m).items()}
+           for m in ("partial", "full")]
+    assert sorted(cov[0]) == sorted(cov[1])  # paired: the same seeds ran both
+    assert partial_against_full(*cov) == entry["partial_vs_full"]
+
+
+def test_both_recombinations_are_recorded_with_their_model_error_and_paired_tests(tmp_path):
+    """Seeds 0-3 of full and partial: partial ends one higher on three seeds, tied on one;
+    its final model error is half of full's and its tests walked more gait cycles."""
+    recs = []
+    for seed in range(4):
+        for g in range(0, 1001, 40):
+            recs.append(_rec(seed, g, 20, method="full", error=0.2, walked=(0, 1)))
+            recs.append(_rec(seed, g, 20 + (seed > 0 and g == 1000), method="partial",
+                             error=0.1, walked=(0, 1, g // 40)))
+    recs.append(_rec(4, 0, 5, method="partial"))  # incomplete: left out
+    log = tmp_path / "log.jsonl"
+    log.write_text("".join(json.dumps(r) + "\n" for r in recs))
+    root = tmp_path / "records"
+    e = learning_records.save("shifted", log, "c", 20, method="fit_ga", root=root,
+                              recombinations=("full", "partial"))
+    assert e["recombinations"] == ["full", "partial"]
+    assert e["figures"]["finals"] == [20, 21, 21, 21]  # partial's
+    full, part = e["by_recombination"]["full"], e["by_recombination"]["partial"]
+    assert full["finals"] == [20] * 4 and full["best_known"] == 21
+    assert full["final_model_error_FTdH"] == [0.2, 0.4, 0.6]
+    assert part["final_model_error_FTdH"] == [0.1, 0.2, 0.3]
+    assert full["rows_walked_range"] == [2, 2] and part["rows_walked_range"] == [26, 26]
+    t = e["partial_vs_full"]
+    assert (t["seeds"], t["final_partial_higher"], t["final_partial_lower"]) == (4, 3, 0)
+    assert t["final_coverage_wilcoxon"]["n"] == 3
+    assert t["final_coverage_wilcoxon"]["p_value"] == pytest.approx(0.25)  # 2 of 2^3 patterns
+    text = learning_records.comparison_markdown(root)
+    assert "| shifted (21), fit_ga, 4 | partial | 20, 21, 21, 21 (20.75) |" in text
+    assert "3/0 of 4" in text and "Pooled over the 4 seed pairs" in text
+    assert "| shifted" not in learning_records.markdown(root)  # not a row of the default's
+    rerecorded = learning_records.read_log(learning_records.record_path("shifted", "fit_ga",
+                                                                        root))
+    assert {r["seed"] for r in rerecorded} == {0, 1, 2, 3}
+
+
+def test_a_recombination_the_log_lacks_is_refused(tmp_path, capsys):
+    log = tmp_path / "log.jsonl"
+    log.write_text("".join(json.dumps(_rec(0, g, 10)) + "\n" for g in range(0, 1001, 40)))
+    assert learning_records.main(["save", "shifted", str(log), "--command", "c",
+                                  "--recombinations", "full,partial"]) == 2
+    assert "no complete run" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("key", sorted(k for k, e in RECORDED.items()
@@ -136,7 +202,8 @@ def test_the_issues_targets_hold_on_the_recorded_runs_of_the_default(key):
 def test_records_are_gzipped_json_lines():
     for entry in RECORDED.values():
         with gzip.open(learning_records.RECORDS / entry["log"], "rt") as fh:
-            assert json.loads(fh.readline())["method"] == "partial"
+            assert json.loads(fh.readline())["method"] in entry.get("recombinations",
+                                                                    ["partial"])
 
 
 @pytest.mark.parametrize("doc", ["README.md", "docs/learning.md"])
