@@ -200,7 +200,7 @@ def comparison_markdown(root: Path = RECORDS) -> str:
     head = ("| robot (best known), method, seeds | recombination | finals (mean) | 90% reached, "
             "median punctuations (robot hours) | 95% at the end | final model error (mean F, "
             "T, dH over 32 gait cycles) | gait cycles walked by the end | partial against "
-            "full: final, mean coverage (paired Wilcoxon p); partial higher/lower |\n"
+            "full: final, mean coverage (paired Wilcoxon p); final higher, lower |\n"
             "|---|---|---|---|---|---|---|---|\n")
     rows: list[str] = []
     pooled: dict[str, dict] = {"partial": {}, "full": {}}  # by (robot, seed)
@@ -216,14 +216,14 @@ def comparison_markdown(root: Path = RECORDS) -> str:
             err = ", ".join(f"{e:g}" for e in f["final_model_error_FTdH"])
             lo, hi = f["rows_walked_range"]
             vs = (f"{_p(t['final_coverage_wilcoxon'])}, {_p(t['mean_coverage_wilcoxon'])}; "
-                  f"{t['final_partial_higher']}/{t['final_partial_lower']} of {t['seeds']}"
-                  if m == "partial" else "")
+                  f"higher on {t['final_partial_higher']}, lower on {t['final_partial_lower']} "
+                  f"of {t['seeds']}" if m == "partial" else "")
             rows.append(
                 f"| {rec['robot']} ({f['best_known']}), {rec['method']}, {f['seeds']} | {m} | "
                 f"{', '.join(map(str, f['finals']))} ({f['final_mean']}) | {f['reached_90']}/"
                 f"{f['seeds']}, {_num(f['median_punctuations_to_90'])} "
                 f"({_num(f['median_robot_hours_to_90'], 2)}) | {f['ended_at_95']}/{f['seeds']} | "
-                f"{err} | {lo}-{hi} | {vs} |")
+                f"{err} | {lo if lo == hi else f'{lo}-{hi}'} | {vs} |")
     if not rows:
         return head
     t = partial_against_full(pooled["partial"], pooled["full"])

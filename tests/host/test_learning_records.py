@@ -172,7 +172,8 @@ def test_both_recombinations_are_recorded_with_their_model_error_and_paired_test
     assert t["final_coverage_wilcoxon"]["p_value"] == pytest.approx(0.25)  # 2 of 2^3 patterns
     text = learning_records.comparison_markdown(root)
     assert "| shifted (21), fit_ga, 4 | partial | 20, 21, 21, 21 (20.75) |" in text
-    assert "3/0 of 4" in text and "Pooled over the 4 seed pairs" in text
+    assert "higher on 3, lower on 0 of 4 |" in text and "Pooled over the 4 seed pairs" in text
+    assert "| 0.2, 0.4, 0.6 | 2 |" in text and "| 0.1, 0.2, 0.3 | 26 |" in text
     assert "| shifted" not in learning_records.markdown(root)  # not a row of the default's
     rerecorded = learning_records.read_log(learning_records.record_path("shifted", "fit_ga",
                                                                         root))
