@@ -144,6 +144,14 @@ def test_a_comparison_record_gives_its_tests(key):
     assert partial_against_full(*cov) == entry["partial_vs_full"]
 
 
+def test_the_paper_question_is_recorded_for_the_default_with_the_model_ga():
+    """Partial against full is answered on a record of the current method with the model GA
+    on top (the default runs none), on two robots or more."""
+    robots = {e["robot"] for e in RECORDED.values()
+              if "partial_vs_full" in e and e["method"] == "fit_ga"}
+    assert len(robots) >= 2
+
+
 def test_both_recombinations_are_recorded_with_their_model_error_and_paired_tests(tmp_path):
     """Seeds 0-3 of full and partial: partial ends one higher on three seeds, tied on one;
     its final model error is half of full's and its tests walked more gait cycles."""
@@ -218,6 +226,17 @@ def test_the_docs_table_is_the_records(doc):
     assert begin in text and end in text, f"{doc} has no records table"
     table = text.split(begin, 1)[1].split(end, 1)[0].strip("\n") + "\n"
     assert table == learning_records.markdown()
+
+
+@pytest.mark.parametrize("doc", ["README.md", "docs/learning.md"])
+def test_the_docs_partial_against_full_table_is_the_records(doc):
+    """The partial-against-full table in the README and docs/learning.md is what ``python
+    bench/learning_records.py comparison`` prints from the records."""
+    text = (BENCH.parent / doc).read_text()
+    begin, end = learning_records.CMP_BEGIN, learning_records.CMP_END
+    assert begin in text and end in text, f"{doc} has no partial-against-full table"
+    table = text.split(begin, 1)[1].split(end, 1)[0].strip("\n") + "\n"
+    assert table == learning_records.comparison_markdown()
 
 
 def test_the_best_known_is_raised_to_the_best_a_run_walked(tmp_path):
