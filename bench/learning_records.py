@@ -152,13 +152,14 @@ def save(robot: str, log: Path, command: str, best_known: int, method: str = "de
         doc[key]["by_recombination"] = {m: recombination_figures(runs, best_known)
                                         for m, runs in by.items()}
     if {"full", "partial"} <= set(by):
-        doc[key]["partial_vs_full"] = partial_against_full(*(_coverage(by[m])
+        doc[key]["partial_vs_full"] = partial_against_full(*(coverage_by_seed(by[m])
                                                              for m in ("partial", "full")))
     (root / INDEX.name).write_text(json.dumps(dict(sorted(doc.items())), indent=1) + "\n")
     return doc[key]
 
 
-def _coverage(runs: dict[int, list[dict]]) -> dict[int, list[int]]:
+def coverage_by_seed(runs: dict[int, list[dict]]) -> dict[int, list[int]]:
+    """By seed, the operational coverage after each punctuation of ``runs``."""
     return {s: [r["operational_fitness"] for r in rs] for s, rs in runs.items()}
 
 
@@ -210,7 +211,7 @@ def comparison_markdown(root: Path = RECORDS) -> str:
         t = rec["partial_vs_full"]
         runs = {m: complete_runs(read_log(root / rec["log"]), m) for m in ("partial", "full")}
         for m, by_seed in pooled.items():
-            by_seed.update({(rec["robot"], s): c for s, c in _coverage(runs[m]).items()})
+            by_seed.update({(rec["robot"], s): c for s, c in coverage_by_seed(runs[m]).items()})
         for m in ("full", "partial"):
             f = rec["by_recombination"][m]
             err = ", ".join(f"{e:g}" for e in f["final_model_error_FTdH"])
@@ -231,6 +232,11 @@ def comparison_markdown(root: Path = RECORDS) -> str:
             f"coverage {_p(t['final_coverage_wilcoxon'])}, mean coverage "
             f"{_p(t['mean_coverage_wilcoxon'])}; partial higher on {t['final_partial_higher']}, "
             f"lower on {t['final_partial_lower']}.\n")
+
+
+# what the docs carry between each pair of markers, by the command that prints it
+TABLES = {"table": (BEGIN, END, markdown),
+          "comparison": (CMP_BEGIN, CMP_END, comparison_markdown)}
 
 
 def _p(test: dict) -> str:
@@ -262,11 +268,8 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("table", help="the figures as the docs' markdown table")
     sub.add_parser("comparison", help="partial against full as the docs' markdown table")
     a = ap.parse_args(argv)
-    if a.what == "table":
-        print(markdown(), end="")
-        return 0
-    if a.what == "comparison":
-        print(comparison_markdown(), end="")
+    if a.what in TABLES:
+        print(TABLES[a.what][2](), end="")
         return 0
     if a.what == "save":
         if not a.log.exists():

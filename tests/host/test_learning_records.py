@@ -137,8 +137,7 @@ def test_a_comparison_record_gives_its_tests(key):
     """The paired tests of partial against full in the index are those of its log's runs."""
     entry = RECORDED[key]
     recs = learning_records.read_log(learning_records.RECORDS / entry["log"])
-    cov = [{s: [r["operational_fitness"] for r in rs]
-            for s, rs in learning_records.complete_runs(recs, m).items()}
+    cov = [learning_records.coverage_by_seed(learning_records.complete_runs(recs, m))
            for m in ("partial", "full")]
     assert sorted(cov[0]) == sorted(cov[1])  # paired: the same seeds ran both
     assert partial_against_full(*cov) == entry["partial_vs_full"]
@@ -216,27 +215,16 @@ def test_records_are_gzipped_json_lines():
 
 
 @pytest.mark.parametrize("doc", ["README.md", "docs/learning.md"])
-def test_the_docs_table_is_the_records(doc):
-    """The 30-seed table in the README and docs/learning.md is what ``python
-    bench/learning_records.py table`` prints from the records, figure for figure."""
-    if not RECORDED:
-        pytest.skip("no records yet")
+@pytest.mark.parametrize("what", sorted(learning_records.TABLES))
+def test_the_docs_tables_are_the_records(doc, what):
+    """The 30-seed table and the partial-against-full table in the README and
+    docs/learning.md are what ``python bench/learning_records.py table`` and ``... comparison``
+    print from the records, figure for figure."""
+    begin, end, make = learning_records.TABLES[what]
     text = (BENCH.parent / doc).read_text()
-    begin, end = learning_records.BEGIN, learning_records.END
-    assert begin in text and end in text, f"{doc} has no records table"
+    assert begin in text and end in text, f"{doc} has no {what} of the records"
     table = text.split(begin, 1)[1].split(end, 1)[0].strip("\n") + "\n"
-    assert table == learning_records.markdown()
-
-
-@pytest.mark.parametrize("doc", ["README.md", "docs/learning.md"])
-def test_the_docs_partial_against_full_table_is_the_records(doc):
-    """The partial-against-full table in the README and docs/learning.md is what ``python
-    bench/learning_records.py comparison`` prints from the records."""
-    text = (BENCH.parent / doc).read_text()
-    begin, end = learning_records.CMP_BEGIN, learning_records.CMP_END
-    assert begin in text and end in text, f"{doc} has no partial-against-full table"
-    table = text.split(begin, 1)[1].split(end, 1)[0].strip("\n") + "\n"
-    assert table == learning_records.comparison_markdown()
+    assert table == make()
 
 
 def test_the_best_known_is_raised_to_the_best_a_run_walked(tmp_path):
