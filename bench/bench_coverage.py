@@ -22,11 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_host import cga, pal
-from pac_host.cga import random_population
 from pac_host.coverage import parse_turn_cycle, simulate
+from pac_host.learning import pal
 from pac_host.model import measured_table, shifted_table
 from pac_host.model.effects import Effect
+from pac_host.search import cga
+from pac_host.search.cga import random_population
 from pac_host.search.neighbours import neighbours
 
 

@@ -1,6 +1,6 @@
 """How fast PAL learns the robot, in robot tests: each learning method on several robots.
 
-For the paper's shifted robot and the robots of ``pac_host.robots`` (independent row errors,
+For the paper's shifted robot and the robots of ``pac_host.model.robots`` (independent row errors,
 left/right asymmetry, library effects on a changed table, an effect outside the library), runs
 ``pac-host experiment`` (methods partial, full and the oracle control) with each learning
 method, and reports per robot and method: seeds reaching 90% of the best known, the median
@@ -51,10 +51,10 @@ import known_best
 import learning_records
 import numpy as np
 
-from pac_host import profiles, robots, test_selection
-from pac_host.experiment import ExperimentConfig, run_experiment
-from pac_host.model import measured_table, shifted_table
-from pac_host.pal import PAPER, PALConfig
+from pac_host.experiments.experiment import ExperimentConfig, run_experiment
+from pac_host.learning import profiles, test_selection
+from pac_host.learning.pal import PAPER, PALConfig
+from pac_host.model import measured_table, robots, shifted_table
 from pac_host.search import shapes
 
 WALKING = 20_000_000  # search evaluations a punctuation for method "walking"
@@ -71,7 +71,8 @@ METHODS = {
     "no_shapes": profiles.apply("default", PALConfig(shapes="none")),
     "fit_ga": profiles.apply("default", PALConfig(model_generations=40)),  # + the model GA
     "paper_tests": profiles.apply("default", PALConfig(tests="paper")),  # the paper's tests
-    # the default searching for a robot placed by hand (evolve's default: pac_host.placement)
+    # the default searching for a robot placed by hand (evolve's default:
+    # pac_host.coverage.placement)
     "placed": profiles.apply("default", PALConfig(placement="0.5,1")),
     # the default with the search a real robot's walking pays for, in part: 20 million
     # evaluations a punctuation (about a minute of one core; `evolve --port` searches while

@@ -20,9 +20,9 @@ import time
 from pathlib import Path
 
 from pac_host.coverage import parse_turn_cycle
-from pac_host.evolve import EvolveConfig, evolve
 from pac_host.model import shifted_table
 from pac_host.robot.connect import EmulatorOptions, connect
+from pac_host.robot.evolve import EvolveConfig, evolve
 from pac_protocol.timing import T_CYCLE_S, T_EEPROM_WRITE_S, T_PROCESS_S, T_RUN_S, wire_time
 
 REQUEST, ACK, STATUS_R, READY, CYCLE, DONE = 9, 6, 12, 7, 11, 9

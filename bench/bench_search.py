@@ -34,8 +34,7 @@ from pathlib import Path
 import known_best
 import numpy as np
 
-from pac_host import robots
-from pac_host.model import GaitTable, measured_table, shifted_table
+from pac_host.model import GaitTable, measured_table, robots, shifted_table
 from pac_host.model.effects import parse_effect
 from pac_host.plots import optimize_progress
 from pac_host.search import shapes

@@ -24,9 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_host import robots
 from pac_host.coverage import parse_turn_cycle
-from pac_host.model import shifted_table
+from pac_host.model import robots, shifted_table
 from pac_host.search import shorten
 from pac_host.search.kicks import loop_table
 

@@ -41,10 +41,10 @@ from bench_link import robot_seconds  # noqa: E402
 
 from pac_host.coverage import parse_turn_cycle  # noqa: E402
 from pac_host.errors import TOOLKIT_ERRORS  # noqa: E402
-from pac_host.evolve import EvolveConfig, evolve  # noqa: E402
 from pac_host.model import shifted_table  # noqa: E402
 from pac_host.robot.api import EVENT_TIMEOUT_S, StampRobot  # noqa: E402
 from pac_host.robot.connect import EmulatorOptions, connect  # noqa: E402
+from pac_host.robot.evolve import EvolveConfig, evolve  # noqa: E402
 from pac_host.robot.linked import LinkedRobot  # noqa: E402
 from pac_host.robot.observers import open_observer  # noqa: E402
 from pac_host.robot.placement import TrackerPlacer  # noqa: E402

@@ -23,9 +23,10 @@ import time
 
 import numpy as np
 
-from pac_host import cga, model_fit, robots
 from pac_host.coverage import simulate
-from pac_host.model import measured_table, parse_effect, shifted_table
+from pac_host.learning import model_fit
+from pac_host.model import measured_table, parse_effect, robots, shifted_table
+from pac_host.search import cga
 
 NOISE = (0.5, 1.0)
 SEQ = {"transition", "battery_sag", "floor_slope"}

@@ -16,10 +16,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from pac_host.executors import WORKER_CONFIG, DaskExecutor, InProcess, dask_executor
-from pac_host.experiment import ExperimentConfig, optimum_run
+from pac_host.experiments.executors import WORKER_CONFIG, DaskExecutor, InProcess, dask_executor
+from pac_host.experiments.experiment import ExperimentConfig, optimum_run
+from pac_host.experiments.sweep import parse_sweep, run_sweep
 from pac_host.model import shifted_table
-from pac_host.sweep import parse_sweep, run_sweep
 
 
 def _spec(quick: bool) -> dict:

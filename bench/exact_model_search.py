@@ -30,7 +30,7 @@ import numpy as np
 
 from pac_host.coverage import fitness_of_search_score, parse_turn_cycle
 from pac_host.errors import InputError
-from pac_host.experiment import read_complete_runs
+from pac_host.experiments.experiment import read_complete_runs
 from pac_host.search import shapes
 from pac_host.search.local import Objective, climb
 from pac_host.search.optimize import OptimizeConfig, optimize

@@ -32,7 +32,12 @@ from pathlib import Path
 import known_best
 import numpy as np
 
-from pac_host.experiment import TARGET, partial_against_full, punctuations_to, robot_time_report
+from pac_host.experiments.experiment import (
+    TARGET,
+    partial_against_full,
+    punctuations_to,
+    robot_time_report,
+)
 
 HERE = Path(__file__).resolve().parent
 RECORDS = HERE / "records"
@@ -68,7 +73,8 @@ def complete_runs(recs: list[dict], method: str = "partial",
 def figures(runs: dict[int, list[dict]], best_known: int) -> dict:
     """What docs/learning.md quotes of a robot's runs: the issue's targets (90% of the best
     known reached, by how many punctuations; 95% at the end), through the experiment's own
-    :func:`~pac_host.experiment.robot_time_report`, and by seed the finals, the punctuations
+    :func:`~pac_host.experiments.experiment.robot_time_report`, and by seed the finals, the
+    punctuations
     to 90% and the later punctuations whose three tests the model predicted exactly."""
     rows = []
     for seed, rs in runs.items():
@@ -122,7 +128,7 @@ def save(robot: str, log: Path, command: str, best_known: int, method: str = "de
     one's), against ``best_known`` raised to the best any of the runs walked (as the
     experiment raises it). With more than one recombination the entry also has each one's
     :func:`recombination_figures` and, given full and partial, the paired tests of
-    :func:`~pac_host.experiment.partial_against_full`."""
+    :func:`~pac_host.experiments.experiment.partial_against_full`."""
     recs = read_log(log)
     by = {m: complete_runs(recs, m) for m in recombinations}
     for m, runs in by.items():

@@ -2,7 +2,7 @@
 for seed, where the model cannot be the reason a run ends short.
 
 For each robot of ``--robots`` (the learning bench's: the shifted robot and those of
-``pac_host.robots``), from the library less the sweeps found on that robot (as the bench gives
+``pac_host.model.robots``), from the library less the sweeps found on that robot (as the bench gives
 it), runs ``optimize`` with ``--chains`` chains and ``--evaluations`` evaluations for each
 closing-kick length cost of ``--kick-length-costs`` (cm a gait cycle of the kicked loop weighs
 in the repair; :mod:`pac_host.search.kicks`) and each of ``--shorten-after`` (kicks without
@@ -36,11 +36,11 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from pac_host.errors import InputError
+from pac_host.experiments.stats import wilcoxon_signed_rank
 from pac_host.search import shapes
 from pac_host.search.kicks import check_length_cost
 from pac_host.search.optimize import OptimizeConfig, optimize
 from pac_host.search.shorten import check_shorten_after
-from pac_host.stats import wilcoxon_signed_rank
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_learning import actual_robots  # noqa: E402

@@ -1,8 +1,9 @@
 """Values a user wrote by hand (JSON or TOML), checked against a config field's type hint.
 
 One definition for every hand-editable file that maps onto a dataclass: an evolve run's
-``config.json`` (:func:`pac_host.evolve.load_config`) and a sweep's settings
-(:mod:`pac_host.sweep.settings`). Neither format tells a bool from an integer the way Python
+``config.json`` (:func:`pac_host.robot.evolve.load_config`) and a sweep's settings
+(:mod:`pac_host.experiments.sweep.settings`). Neither format tells a bool from an integer the way
+Python
 does, so a bool is never a number here; an integer is a float; ``null`` fits only a field whose
 type allows ``None``; a tuple field takes a list (or, for strings, a comma-separated string)
 and comes back as a JSON-friendly list.

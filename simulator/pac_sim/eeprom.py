@@ -12,7 +12,7 @@ import threading
 from pathlib import Path
 
 from pac_host.errors import InputError
-from pac_host.stamp_image import TURN_CYCLE_ADDR
+from pac_host.stamp.image import TURN_CYCLE_ADDR
 from pac_protocol.messages import MAX_GENES
 
 FORMAT = "pac-sim-eeprom/1"

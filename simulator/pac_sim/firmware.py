@@ -25,7 +25,7 @@ from collections import deque
 from pathlib import Path
 
 from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError
-from pac_host.stamp_image import TURN_CYCLE_ADDR, TURN_CYCLE_SIZE, tokenize
+from pac_host.stamp.image import TURN_CYCLE_ADDR, TURN_CYCLE_SIZE, tokenize
 from pac_protocol.decoder import FrameDecoder
 from pac_protocol.messages import Cmd
 from pac_protocol.timing import T_IDLE_S

@@ -1,4 +1,4 @@
-"""The Stamp's side of the BS2 download protocol (see :mod:`pac_host.stamp_loader`).
+"""The Stamp's side of the BS2 download protocol (see :mod:`pac_host.stamp.loader`).
 
 A byte-in, bytes-out state machine: :meth:`StampDownload.feed` takes what the host sent and
 returns what the module sends back (the programming port's echo of every byte, then the
@@ -24,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from pac_host.stamp_image import (
+from pac_host.stamp.image import (
     ADDRESS_FLAG,
     BLOCK_SIZE,
     EEPROM_SIZE,
@@ -33,7 +33,7 @@ from pac_host.stamp_image import (
     TURN_CYCLE_ADDR,
     firmware_version_of,
 )
-from pac_host.stamp_loader import (
+from pac_host.stamp.loader import (
     ACK_OK,
     END_OF_DOWNLOAD,
     ID_BYTES,

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pac_host.stamp_image import PACKET_SIZE
+from pac_host.stamp.image import PACKET_SIZE
 from pac_protocol.frame import HEADER, MAX_PAYLOAD, SYNC
 from pac_protocol.messages import Cmd
 

@@ -12,15 +12,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_host import cga, model_fit
 from pac_host.coverage import simulate
 from pac_host.diagnose.fit import Problem
 from pac_host.diagnose.fitted_rows import _row_columns, fitted_rows_problems
 from pac_host.diagnose.likelihood import whitener
 from pac_host.diagnose.noise import NoiseFloor
 from pac_host.diagnose.residuals import batch_of, step_residuals
+from pac_host.learning import model_fit
 from pac_host.model import parse_effect, shifted_table
 from pac_host.model.table import GaitTable
+from pac_host.search import cga
 
 SEQ = {"transition", "battery_sag", "floor_slope", "yaw_bias"}
 

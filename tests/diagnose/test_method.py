@@ -103,9 +103,9 @@ def test_short_runs_are_reported_as_uninformative():
 
 
 def test_effects_already_in_the_model_are_kept_and_not_refitted():
-    from pac_host.cga import random_population
     from pac_host.diagnose import split_runs
     from pac_host.diagnose.synth import world_runs
+    from pac_host.search.cga import random_population
 
     rng = np.random.default_rng(12)
     known = Effect("yaw_bias", {"delta": 0.6})

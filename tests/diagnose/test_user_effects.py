@@ -22,7 +22,7 @@ from pac_host.model.effects_module import forget_user_effects, load_effects_modu
 from pac_sim.cli import main as pac_sim_main
 
 BIN = Path(sys.executable).parent
-STALL = Path(__file__).resolve().parents[2] / "docs" / "examples" / "stall_effect.py"
+STALL = Path(__file__).resolve().parents[2] / "examples" / "effects" / "stall_effect.py"
 
 
 @pytest.fixture

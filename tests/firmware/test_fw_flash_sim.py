@@ -9,8 +9,8 @@ from click.testing import CliRunner
 from fw_build import SOURCE, run_tokenizer, source_with_version
 
 from pac_host.cli.main import main
-from pac_host.stamp_image import image_from_json
-from pac_host.stamp_loader import StampLoader
+from pac_host.stamp.image import image_from_json
+from pac_host.stamp.loader import StampLoader
 from pac_protocol.errors import NoAnswer
 from pac_protocol.link import StampLink
 from pac_protocol.port import open_port

@@ -130,7 +130,7 @@ def test_a_changed_affecter_line_is_caught():
 def test_eeprom_layout_the_host_and_emulator_rely_on(stamp, built):
     """FwInfo at 0 (tag, versions), the turn cycle at TURN_CYCLE_ADDR, the gait after it, and
     the interpreter's DATA equal to the tokenizer's."""
-    from pac_host.stamp_image import FW_TAG, TURN_CYCLE_ADDR, TURN_CYCLE_SIZE
+    from pac_host.stamp.image import FW_TAG, TURN_CYCLE_ADDR, TURN_CYCLE_SIZE
 
     assert label(stamp, "FwInfo") == 0
     assert bytes(stamp.eeprom.mem[: len(FW_TAG)]) == FW_TAG

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from pac_host.errors import InputError
-from pac_host.stamp_image import check_packet, load_image, make_packet
+from pac_host.stamp.image import check_packet, load_image, make_packet
 
 
 def test_json_and_bin_images_hold_the_same_packets(built):

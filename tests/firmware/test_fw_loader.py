@@ -9,8 +9,8 @@ import serial
 from fw_build import SOURCE
 from fw_fake_stamp import FakeStamp
 
-from pac_host.stamp_image import image_from_json
-from pac_host.stamp_loader import (
+from pac_host.stamp.image import image_from_json
+from pac_host.stamp.loader import (
     FlashError,
     NoStampError,
     PacketNotAcknowledged,

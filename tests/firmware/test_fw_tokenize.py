@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fw_build import SOURCE, run_tokenizer
 
-from pac_host.stamp_image import EEPROM_SIZE, check_packet
+from pac_host.stamp.image import EEPROM_SIZE, check_packet
 
 RAM_BYTES = 26
 

@@ -10,8 +10,8 @@ from pac_host import limits
 from pac_host.cli.main import main
 from pac_host.coverage import check_budget
 from pac_host.errors import InputError
-from pac_host.evolve import EvolveConfig
-from pac_host.experiment import ExperimentConfig
+from pac_host.experiments.experiment import ExperimentConfig
+from pac_host.robot.evolve import EvolveConfig
 
 
 def one_line_exit_2(args: list[str], words: str) -> str:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_host import cga
 from pac_host.coverage import (
     START_POSE,
     coverage_of_poses,
@@ -20,6 +19,7 @@ from pac_host.coverage import (
 )
 from pac_host.errors import InputError
 from pac_host.model import Effect, measured_table, rollout, shifted_table
+from pac_host.search import cga
 
 M = measured_table().rows
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_host import cga, coverage_jit
 from pac_host.coverage import START_POSE, _Runner, expand, search_score, simulate
+from pac_host.coverage import kernel as coverage_jit
 from pac_host.model import measured_table, parse_effect, shifted_table, step_moves
 from pac_host.model.effects import ParamSpec, register_effect
 from pac_host.model.effects_module import forget_user_effects
 from pac_host.model.kinematics import complex_moves
+from pac_host.search import cga
 
 pytestmark = pytest.mark.skipif(not coverage_jit.AVAILABLE, reason="numba not installed")
 FIGURES = ("blocks_covered", "blocks_covered_once", "fitness", "repeat_visits", "reached_at")

@@ -10,10 +10,10 @@ from click.testing import CliRunner
 
 from pac_host.cli.main import main
 from pac_host.coverage import parse_turn_cycle
-from pac_host.experiment import STAGE_PLACED
+from pac_host.coverage.placement import HAND, WALKS, placed_fitness
+from pac_host.coverage.placement import summary as summary_of
+from pac_host.experiments.experiment import STAGE_PLACED
 from pac_host.model import shifted_table
-from pac_host.placement import HAND, WALKS, placed_fitness
-from pac_host.placement import summary as summary_of
 
 SMALL = ["--seeds", "2", "--generations", "80", "--initial-generations", "30",
          "--optimum-runs", "2", "--optimum-generations", "60", "--optimum-evaluations", "20000",

@@ -10,10 +10,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pac_host import pal, profiles, robots
 from pac_host.coverage import parse_turn_cycle, simulate
 from pac_host.errors import InputError
-from pac_host.model import measured_table
+from pac_host.learning import pal, profiles
+from pac_host.model import measured_table, robots
 
 
 def _cfg(explore: float) -> pal.PALConfig:
@@ -78,7 +78,7 @@ def test_evolve_and_experiment_take_explore_from_the_command_line(tmp_path):
     from click.testing import CliRunner
 
     from pac_host.cli.main import main
-    from pac_host.evolve import EvolveConfig, load_config
+    from pac_host.robot.evolve import EvolveConfig, load_config
 
     assert EvolveConfig().explore == 0.0  # a run saved before it explored nothing
     out = tmp_path / "run"

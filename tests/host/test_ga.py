@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_host import cga, model_ga
 from pac_host.coverage import parse_turn_cycle, simulate
-from pac_host.ga_ops import tournament, two_point_crossover
+from pac_host.learning import model_ga
 from pac_host.model import measured_table, shifted_table
+from pac_host.search import cga
+from pac_host.search.ga_ops import tournament, two_point_crossover
 
 M = measured_table().rows
 A = shifted_table().rows

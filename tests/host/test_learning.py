@@ -7,14 +7,15 @@ import json
 import numpy as np
 import pytest
 
-from pac_host import cga, model_fit, pal, robots, test_selection
 from pac_host.coverage import parse_turn_cycle
 from pac_host.errors import InputError
-from pac_host.experiment import punctuations_to, robot_time_report
-from pac_host.model import measured_table, shifted_table
+from pac_host.experiments.experiment import punctuations_to, robot_time_report
+from pac_host.learning import model_fit, pal, test_selection
+from pac_host.learning.robot_time import GAIT_PERIOD_S, PLACE_S, seconds_of_tests
+from pac_host.model import measured_table, robots, shifted_table
 from pac_host.model.effects import effective_rows
 from pac_host.model.table import save_table
-from pac_host.robot_time import GAIT_PERIOD_S, PLACE_S, seconds_of_tests
+from pac_host.search import cga
 
 TESTS = np.array([[[12, 20], [3, 8], [19, 6]], [[12, 9], [22, 7], [0, 0]],
                   [[14, 30], [7, 5], [0, 0]]])

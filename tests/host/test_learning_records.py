@@ -20,7 +20,7 @@ import bench_learning  # noqa: E402
 import learning_records  # noqa: E402
 
 from pac_host.coverage import parse_turn_cycle, simulate  # noqa: E402
-from pac_host.experiment import partial_against_full  # noqa: E402
+from pac_host.experiments.experiment import partial_against_full  # noqa: E402
 
 RECORDED = learning_records.index()
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pac_host import pal
 from pac_host.coverage import parse_turn_cycle
+from pac_host.learning import pal
 from pac_host.model import measured_table, shifted_table
 
 # the paper's method (the default is the whole-table correction: tests/host/test_learning.py)
@@ -113,7 +113,7 @@ def test_anytime_pal_carries_its_search_through_a_saved_state():
     and resumed from the file is the same run as one never stopped."""
     from dataclasses import replace
 
-    from pac_host import profiles
+    from pac_host.learning import profiles
 
     cfg = replace(profiles.apply("default", pal.PALConfig(
         cga_population=16, model_population=8, model_generations=2, generations=60,

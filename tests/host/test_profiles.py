@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pac_host import pal, profiles
 from pac_host.cli.main import main
 from pac_host.errors import InputError
+from pac_host.learning import pal, profiles
 from pac_host.model import measured_table, shifted_table
 
 SHORT = ["experiment", "--seeds", "2", "--generations", "80", "--initial-generations", "60",
@@ -64,7 +64,7 @@ def test_a_search_setting_is_on_in_the_default_profile_and_off_in_runs_saved_bef
         setting):
     """Settings added to the default's search: the paper profile and a run saved before the
     setting existed load without it; an evolve run's config passes it to PAL."""
-    from pac_host.evolve import EvolveConfig
+    from pac_host.robot.evolve import EvolveConfig
 
     assert getattr(profiles.apply("default", pal.PALConfig()), setting)
     assert not getattr(profiles.apply("paper", pal.PALConfig()), setting)

@@ -1,16 +1,17 @@
-"""The sequence and world effects refitted with the rows (pac_host.model_fit.refine_effects)."""
+"""The sequence and world effects refitted with the rows
+(pac_host.learning.model_fit.refine_effects)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from pac_host import model_fit
 from pac_host.diagnose.residuals import batch_of, step_residuals
+from pac_host.learning import model_fit
+from pac_host.learning.pal import SimulatedRobot
 from pac_host.model import measured_table
 from pac_host.model.effects import Effect
 from pac_host.model.table import GaitTable
-from pac_host.pal import SimulatedRobot
 
 TRUE_ALPHA, TRUE_BETA = 0.3, 0.002
 
@@ -99,7 +100,7 @@ def test_pal_refits_the_effects_with_the_setting_and_not_without():
     their parameters are fitted again on every run, not otherwise."""
     from dataclasses import replace
 
-    from pac_host import pal
+    from pac_host.learning import pal
 
     truth = _truth()
     before = tuple(_observed(truth, 9, seed=2))

@@ -7,9 +7,10 @@ import pytest
 from scipy.optimize import minimize
 from scipy.stats import multivariate_normal
 
-from pac_host import cga, model_fit, pal, row_prior
+from pac_host.learning import model_fit, pal, row_prior
 from pac_host.model import measured_table
 from pac_host.model.table import GaitTable, side, strength
+from pac_host.search import cga
 
 
 def _steps(rng, ids, offsets, noise, per_row=15):

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pac_host import pal, profiles
 from pac_host.cli.main import main
 from pac_host.coverage import parse_turn_cycle, simulate
 from pac_host.errors import InputError
-from pac_host.evolve import EvolveConfig
+from pac_host.learning import pal, profiles
+from pac_host.robot.evolve import EvolveConfig
 from tests.host.test_explore import run_recorded
 from tests.host.test_pal import resumed_and_whole
 

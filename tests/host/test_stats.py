@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from pac_host.stats import fisher_exact, wilcoxon_signed_rank
+from pac_host.experiments.stats import fisher_exact, wilcoxon_signed_rank
 
 
 def _fisher_by_enumeration(a: int, b: int, c: int, d: int) -> float:

@@ -16,8 +16,8 @@ from click.testing import CliRunner
 
 from pac_host.cli.main import main
 from pac_host.errors import InputError
-from pac_host.sweep import load_sweep, parse_sweep, run_sweep
-from pac_host.sweep.settings import canonical_name, experiment_config, setting_names
+from pac_host.experiments.sweep import load_sweep, parse_sweep, run_sweep
+from pac_host.experiments.sweep.settings import canonical_name, experiment_config, setting_names
 
 TINY = """
 [settings]
@@ -207,7 +207,7 @@ def test_experiment_on_a_dask_scheduler_matches_the_local_run(cluster, tmp_path)
 def test_a_worker_killed_mid_sweep_loses_nothing(cluster, serial, sweep_file, tmp_path):
     """A worker process is killed while it holds tasks; the sweep still completes, with the
     results of --jobs 1."""
-    from pac_host.executors import DaskExecutor
+    from pac_host.experiments.executors import DaskExecutor
 
     out, _ = serial
     c, client = cluster
@@ -270,6 +270,6 @@ def test_experiment_with_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_pat
 
 
 def test_the_documented_example_sweep_is_valid():
-    cells = load_sweep(Path(__file__).resolve().parents[2] / "docs" / "sweep-example.toml")
+    cells = load_sweep(Path(__file__).resolve().parents[2] / "examples" / "sweep.toml")
     assert len(cells) == 2 * 2 * 3 + 3
     assert all(c.config.seeds == 30 for c in cells)

@@ -54,7 +54,7 @@ def test_evolve_writes_a_complete_log_and_the_model_error_falls(baseline):
     assert tc["turn_cycle"] == log[-1]["operational"]
     for png in ("coverage_path.png", "learning_progress.png"):
         assert (baseline / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # a robot is placed by hand: the default profile searches for it (pac_host.placement)
+    # a robot is placed by hand: the default profile searches for it (pac_host.coverage.placement)
     assert json.loads((baseline / "config.json").read_text())["placement"] == "0.5,1"
     assert all(r["search"]["evaluations"] % 7 == 0 for r in log if "search" in r)
 

@@ -158,8 +158,8 @@ def test_soak_at_1_percent_dropped_and_corrupted_bytes(baseline, tmp_path):
 def test_measure_redoes_a_measurement_whose_robot_reset(rig):
     """`measure` uses the same layers: the reset in the second placement's walk is redone, and
     the fit is that of a clean line (the same run seeds, the same tracker noise)."""
-    from pac_host.measure import MeasureConfig, measure
     from pac_host.robot.connect import Connection
+    from pac_host.robot.measure import MeasureConfig, measure
     from pac_host.robot.recovery import Recovery
 
     cfg = MeasureConfig(ids=(12, 20), repeats=2, cycles=3, seed=1)

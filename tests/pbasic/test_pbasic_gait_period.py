@@ -1,4 +1,5 @@
-"""The gait-cycle periods robot time is counted in (pac_host.robot_time) are the firmware's:
+"""The gait-cycle periods robot time is counted in (pac_host.learning.robot_time) are the
+firmware's:
 a STEP of three gait cycles of each id, timed in Stamp time from one READY to the next."""
 
 from __future__ import annotations
@@ -8,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pac_host.robot_time import GAIT_PERIOD_S
+from pac_host.learning.robot_time import GAIT_PERIOD_S
 from pac_sim.pbasic import Stamp
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "servobot.bs2"

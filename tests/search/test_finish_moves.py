@@ -10,10 +10,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pac_host import cga, pal, profiles
 from pac_host.coverage import simulate
+from pac_host.learning import pal, profiles
 from pac_host.model import shifted_table
-from pac_host.search import anytime
+from pac_host.search import anytime, cga
 from pac_host.search.local import Chain, Exhausted, Objective
 from tests.host.test_explore import run_recorded
 

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pac_host import pal, profiles, robots
 from pac_host.cli.main import main
 from pac_host.coverage import parse_turn_cycle
 from pac_host.errors import InputError
-from pac_host.model import measured_table, shifted_table
+from pac_host.learning import pal, profiles
+from pac_host.model import measured_table, robots, shifted_table
 from pac_host.search.kicks import SHORTER, closing_kick, closure_error, kick, loop_table
 from pac_host.search.optimize import OptimizeConfig, optimize
 
@@ -88,7 +88,7 @@ def check_anytime_option(tmp_path, option: str, field: str, profile_value, overr
     """An anytime search setting on the command line: evolve saves the default profile's value,
     ``option override`` replaces it; ``option -1`` is exit 2 and one line naming the option in
     optimize and experiment; with ``--profile paper`` the option is refused (exit 2)."""
-    from pac_host.evolve import load_config
+    from pac_host.robot.evolve import load_config
 
     small = ["--generations", "20", "--interval", "20", "--cga-population", "16",
              "--initial-generations", "5", "--search-evaluations", "2000", "--budget", "100"]
@@ -109,7 +109,7 @@ def check_anytime_option(tmp_path, option: str, field: str, profile_value, overr
 
 
 def test_the_command_line_takes_the_length_cost(tmp_path):
-    from pac_host.evolve import EvolveConfig
+    from pac_host.robot.evolve import EvolveConfig
 
     assert EvolveConfig().kick_length_cost == 0.0  # a run saved before it: closeness alone
     assert profiles.apply("paper", pal.PALConfig()).kick_length_cost == 0.0  # the CGA kicks not

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pac_host import cga, pal
 from pac_host.cli.main import main
 from pac_host.coverage import (
     START_POSE,
@@ -21,11 +20,12 @@ from pac_host.coverage import (
     search_score,
     simulate,
 )
+from pac_host.coverage.placement import PlacementError, parse_placement, placed_fitness, summary
 from pac_host.errors import InputError
-from pac_host.evolve import EvolveConfig
+from pac_host.learning import pal
 from pac_host.model import measured_table, parse_effect, shifted_table
-from pac_host.placement import PlacementError, parse_placement, placed_fitness, summary
-from pac_host.search import anytime
+from pac_host.robot.evolve import EvolveConfig
+from pac_host.search import anytime, cga
 from pac_host.search.local import Exhausted, Objective
 from pac_host.search.optimize import OptimizeConfig, optimize
 

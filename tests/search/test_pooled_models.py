@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pac_host import cga, pal, test_selection
 from pac_host.cli.main import main
 from pac_host.coverage import (
     Scorer,
@@ -19,12 +18,13 @@ from pac_host.coverage import (
     pooled_search_score,
     simulate,
 )
+from pac_host.coverage.placement import PlacementError
 from pac_host.errors import InputError
-from pac_host.evolve import EvolveConfig
-from pac_host.experiment import ExperimentConfig, run_experiment
+from pac_host.experiments.experiment import ExperimentConfig, run_experiment
+from pac_host.learning import pal, test_selection
 from pac_host.model import measured_table, parse_effect, shifted_table
-from pac_host.placement import PlacementError
-from pac_host.search import anytime
+from pac_host.robot.evolve import EvolveConfig
+from pac_host.search import anytime, cga
 from pac_host.search.local import Objective
 
 

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pac_host import cga
 from pac_host.cli.main import main
 from pac_host.coverage import fitness_of_score, parse_turn_cycle, search_score, simulate
 from pac_host.model import measured_table, parse_effect, shifted_table
 from pac_host.model.kinematics import loop_moves
+from pac_host.search import cga
 from pac_host.search.kicks import (
     closing_kick,
     closure_error,
@@ -279,9 +279,8 @@ def test_the_best_known_turn_cycles_score_as_recorded():
     import sys
     from pathlib import Path
 
-    from pac_host import robots
-    from pac_host.model import resolve_table
-    from pac_host.placement import parse_placement, placed_fitness, summary
+    from pac_host.coverage.placement import parse_placement, placed_fitness, summary
+    from pac_host.model import resolve_table, robots
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
     import known_best

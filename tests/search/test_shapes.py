@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pac_host import pal, robots
 from pac_host.cli.main import main
 from pac_host.coverage import parse_turn_cycle, simulate
-from pac_host.model import measured_table, shifted_table
+from pac_host.learning import pal
+from pac_host.model import measured_table, robots, shifted_table
 from pac_host.model.kinematics import loop_moves
 from pac_host.search import local, shapes
 from pac_host.search.kicks import loop_table
@@ -54,7 +54,7 @@ def test_a_turn_shift_is_a_relabelling_the_re_expression_undoes():
 def test_the_compiled_re_expression_proposes_what_numpy_does(target, monkeypatch):
     """The numba beam step against the numpy reference, every library sweep re-expressed on
     three tables: the same turn cycles in the same order, errors equal but for rounding."""
-    from pac_host import coverage_jit
+    from pac_host.coverage import kernel as coverage_jit
     from pac_host.search import retarget as rt
 
     if not coverage_jit.AVAILABLE:
@@ -301,7 +301,7 @@ def test_pal_puts_the_librarys_best_sweep_on_the_starting_model_in_its_populatio
 def test_the_oracle_with_the_library_reaches_the_robots_best_sooner(tmp_path):
     """A short anytime PAL run (the oracle: the search on the robot's own table), with the
     library less the robot's own sweeps against without it."""
-    from pac_host.experiment import ExperimentConfig, run_experiment
+    from pac_host.experiments.experiment import ExperimentConfig, run_experiment
 
     lib = tmp_path / "lib.json"
     lib.write_text(json.dumps(LIB.without("shifted").to_json()))
@@ -357,7 +357,7 @@ def test_optimize_starts_from_the_library_unless_told_not_to(tmp_path):
 
 
 def test_evolve_takes_the_library_by_default_and_keeps_it_in_its_config(tmp_path):
-    from pac_host.evolve import EvolveConfig, load_config
+    from pac_host.robot.evolve import EvolveConfig, load_config
 
     assert EvolveConfig().shapes == "none"  # a run saved before the library had none
     assert EvolveConfig(search="ils", search_evaluations=10, shapes="builtin").pal().shapes \

@@ -11,10 +11,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pac_host import pal, profiles, robots
 from pac_host.coverage import parse_turn_cycle, simulate
 from pac_host.errors import InputError
-from pac_host.model import measured_table, shifted_table
+from pac_host.learning import pal, profiles
+from pac_host.model import measured_table, robots, shifted_table
 from pac_host.model.kinematics import loop_moves
 from pac_host.search import local
 from pac_host.search.kicks import WEIGHT, loop_table
@@ -155,7 +155,7 @@ def test_a_bad_setting_is_one_clear_error(bad):
 
 
 def test_the_command_line_takes_the_setting(tmp_path):
-    from pac_host.evolve import EvolveConfig
+    from pac_host.robot.evolve import EvolveConfig
 
     assert EvolveConfig().shorten_after == 0  # a run saved before it: never
     assert profiles.apply("paper", pal.PALConfig()).shorten_after == 0

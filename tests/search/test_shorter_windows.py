@@ -8,9 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_host import robots
 from pac_host.coverage import parse_turn_cycle, simulate
-from pac_host.model import measured_table, shifted_table
+from pac_host.model import measured_table, robots, shifted_table
 from pac_host.model.kinematics import compose_moves, loop_moves
 from pac_host.search import anytime, local
 from pac_host.search import shorten as shorten_mod

@@ -23,11 +23,11 @@ from pac_host.cli.options import (
     shapes_option,
     shorten_after_option,
 )
+from pac_host.coverage.placement import HAND
 from pac_host.errors import InputError
-from pac_host.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
 from pac_host.model.table import BUILTIN
-from pac_host.placement import HAND
 from pac_host.robot.connect import connect
+from pac_host.robot.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
 from pac_host.robot.observers import ManualObserver
 from pac_host.robot.recovery import describe_counts
 

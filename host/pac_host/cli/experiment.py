@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from pac_host import limits, profiles
+from pac_host import limits
 from pac_host.cli.cluster_options import scheduler_options
 from pac_host.cli.options import (
     Bounded,
@@ -28,12 +28,13 @@ from pac_host.cli.options import (
     shorten_after_option,
 )
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
+from pac_host.coverage.placement import HAND, WALKS
 from pac_host.errors import InputError
-from pac_host.executors import make_executor
-from pac_host.experiment import ExperimentConfig, run_experiment
+from pac_host.experiments.executors import make_executor
+from pac_host.experiments.experiment import ExperimentConfig, run_experiment
+from pac_host.learning import profiles
 from pac_host.model import resolve_table
 from pac_host.model.effects import BUILT_IN
-from pac_host.placement import HAND, WALKS
 from pac_host.plots import experiment_plots
 
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from pac_host.firmware_flash import flash_robot
-from pac_host.stamp_image import load_image
+from pac_host.stamp.flash import flash_robot
+from pac_host.stamp.image import load_image
 
 DEFAULT_SOURCE = "firmware/servobot.bs2"
 

@@ -10,7 +10,10 @@ import click
 from pac_host import limits
 from pac_host.cli.link_options import ask, confirm, emulator_options, link_options
 from pac_host.cli.options import Bounded
-from pac_host.measure import (
+from pac_host.model.table import COMPONENTS, resolve_table, save_table
+from pac_host.robot.connect import connect
+from pac_host.robot.linked import AppendLog
+from pac_host.robot.measure import (
     MEASURE_START,
     MeasureConfig,
     differences,
@@ -18,9 +21,6 @@ from pac_host.measure import (
     measured_table,
     parse_ids,
 )
-from pac_host.model.table import COMPONENTS, resolve_table, save_table
-from pac_host.robot.connect import connect
-from pac_host.robot.linked import AppendLog
 from pac_host.robot.recovery import Recovery, describe_counts
 
 
@@ -83,7 +83,7 @@ def measure_cmd(ids, repeats, cycles, start, seed, table_spec, out_path, port, o
         "recovery": recovery.counts()}, indent=1) + "\n")
     import numpy as np
 
-    from pac_host.table_plots import table_differences
+    from pac_host.robot.measure_plots import table_differences
 
     table_differences([f.gait for f in fits], np.array([[d[c] for c in COMPONENTS] for d in diffs]),
                       np.array([f.se for f in fits]), side[".png"],

@@ -20,9 +20,9 @@ from pac_host.cli.options import (
     table_option,
 )
 from pac_host.coverage import DEFAULT_BUDGET
+from pac_host.coverage.placement import parse_placement
 from pac_host.errors import InputError
 from pac_host.files import write_atomic
-from pac_host.placement import parse_placement
 from pac_host.search.local import SAMPLE
 from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
 from pac_host.search.shorten import SHORTEN_AFTER

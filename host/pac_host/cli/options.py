@@ -60,7 +60,7 @@ _SEARCH_HELP = ("Score each turn cycle from a stencil of start poses around the 
 def placement_option(default: str | None = "none", shown: str | bool = True,
                      help: str = _SEARCH_HELP):
     """``--placement-error POS_CM,HEAD_DEG``: a robot placed by hand with these standard
-    deviations (:mod:`pac_host.placement`); by default the searches' help (sweeps that keep
+    deviations (:mod:`pac_host.coverage.placement`); by default the searches' help (sweeps that keep
     their coverage so placed)."""
     return click.option(
         "--placement-error", "placement", default=default, show_default=shown,
@@ -69,7 +69,8 @@ def placement_option(default: str | None = "none", shown: str | bool = True,
 
 def placed_text(placed: dict, error) -> str:
     """How the commands print a turn cycle's fitness from drawn start poses
-    (:func:`pac_host.placement.summary` of walks drawn with ``error``, a PlacementError)."""
+    (:func:`pac_host.coverage.placement.summary` of walks drawn with ``error``, a
+    PlacementError)."""
     return (f"from {placed['walks']} start poses drawn at {error.pos_cm:g} cm, "
             f"{error.head_deg:g} deg: mean fitness {placed['mean']}, median "
             f"{placed['median']:g}, 10th percentile {placed['p10']:g}")
@@ -105,7 +106,7 @@ def progress_enabled() -> bool:
 
 
 def profile_option():
-    from pac_host import profiles
+    from pac_host.learning import profiles
 
     return click.option(
         "--profile", default=profiles.DEFAULT, show_default=True,
@@ -189,8 +190,8 @@ def profile_pal(profile: str, search_evaluations: int | None, model_generations:
     search budget and the model GA generations (by the correction unless given)."""
     from dataclasses import replace
 
-    from pac_host import profiles
-    from pac_host.pal import PALConfig, model_generations_for
+    from pac_host.learning import profiles
+    from pac_host.learning.pal import PALConfig, model_generations_for
 
     cfg = profiles.apply(profile, replace(PALConfig(), **fields))
     src = click.get_current_context().get_parameter_source
@@ -209,9 +210,9 @@ def profile_pal(profile: str, search_evaluations: int | None, model_generations:
     return cfg
 def learning_options(f):
     """How PAL learns the robot: the model correction, the tests, the operational rule
-    (defaults: :class:`pac_host.pal.PALConfig`'s; ``--correction ga --tests paper
+    (defaults: :class:`pac_host.learning.pal.PALConfig`'s; ``--correction ga --tests paper
     --operational best --model-fitness coverage`` is the paper's method)."""
-    from pac_host import model_fit, pal, test_selection
+    from pac_host.learning import model_fit, pal, test_selection
 
     d = pal.PALConfig()
     opts = [

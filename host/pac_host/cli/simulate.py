@@ -19,7 +19,7 @@ from pac_host.cli.options import (
     table_option,
 )
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, check_budget, parse_turn_cycle, simulate
-from pac_host.placement import WALKS, parse_placement, placed_fitness, summary
+from pac_host.coverage.placement import WALKS, parse_placement, placed_fitness, summary
 
 
 @click.command("simulate")

@@ -8,9 +8,9 @@ from pathlib import Path
 import click
 
 from pac_host.cli.cluster_options import scheduler_options
-from pac_host.executors import Executor, InProcess, dask_executor, make_executor
-from pac_host.sweep import load_sweep, run_sweep, varying_keys
-from pac_host.sweep.plots import sweep_plots
+from pac_host.experiments.executors import Executor, InProcess, dask_executor, make_executor
+from pac_host.experiments.sweep import load_sweep, run_sweep, varying_keys
+from pac_host.experiments.sweep.plots import sweep_plots
 
 
 def _local(jobs: int) -> Executor:

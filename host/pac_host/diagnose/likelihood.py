@@ -25,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 
-from pac_host import coverage_jit
+from pac_host.coverage import kernel as coverage_jit
 from pac_host.diagnose.noise import NoiseFloor
 from pac_host.diagnose.residuals import Batch
 

@@ -12,12 +12,12 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from pac_host import cga
 from pac_host.coverage import START_POSE, expand
 from pac_host.diagnose.runs import Run
 from pac_host.model.effects import Effect, step_moves
 from pac_host.model.kinematics import integrate
 from pac_host.model.table import measured_table
+from pac_host.search import cga
 
 
 def cga_turn_cycles(rng: np.random.Generator, n: int, generations: int = 15) -> np.ndarray:

@@ -26,7 +26,7 @@ import numpy as np
 
 from pac_host.coverage import START_POSE, coverage_of_poses, expand
 from pac_host.errors import InputError, PacError
-from pac_host.pal import TestResult
+from pac_host.learning.pal import TestResult
 from pac_host.robot.api import StampRobot
 from pac_host.robot.observers import Observation, Observer, ObserverError
 from pac_host.robot.placement import Placer

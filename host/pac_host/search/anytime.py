@@ -16,8 +16,8 @@ from dataclasses import replace
 import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET
+from pac_host.coverage.placement import PlacementError
 from pac_host.model.effects import Effect
-from pac_host.placement import PlacementError
 from pac_host.search.local import Chain, Objective
 from pac_host.search.shapes import Source
 

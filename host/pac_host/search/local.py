@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, Scorer, fitness_of_search_score
+from pac_host.coverage.placement import PlacementError
 from pac_host.model.effects import Effect
-from pac_host.placement import PlacementError
 from pac_host.search.kicks import closing_kick, loop_table
 from pac_host.search.neighbours import (
     canonical,
@@ -58,7 +58,8 @@ class Objective:
 
     With a ``placement`` error each turn cycle is walked from the placement's stencil of start
     poses around ``start_pose`` and the search scores are pooled over the walks
-    (:mod:`pac_host.placement`): :meth:`fitness` is then the mean fitness of the walks, and an
+    (:mod:`pac_host.coverage.placement`): :meth:`fitness` is then the mean fitness of the walks,
+    and an
     evaluation is one walk, so a turn cycle costs seven. With ``models`` (M, 32, 3), other
     tables the robot may be (the corrected model's posterior draws), each turn cycle is also
     walked on every one and pooled the same way (:class:`~pac_host.coverage.Scorer`): the
@@ -495,7 +496,7 @@ def cga_start(objective: Objective, rng: np.random.Generator,
     """The best turn cycle of a short CGA run from a random population, scored through the
     objective (so its evaluations count); the population's repetitions are divided by
     ``divisor``, to start among shorter, repeating loops (:data:`LOOP_DIVISORS`)."""
-    from pac_host import cga
+    from pac_host.search import cga
 
     cfg = cga.CGAConfig(population=RESTART_POPULATION, budget=objective.budget)
     pop = cga.random_population(rng, cfg.population)

@@ -13,7 +13,8 @@ depends on the seed alone. A budget in seconds is split among the chains by wall
 chain gets ``seconds`` when there are as many processes as chains).
 
 With a placement error (``--placement-error``) every turn cycle is scored from a stencil of
-start poses around the start (:mod:`pac_host.placement`), and the result also gives its fitness
+start poses around the start (:mod:`pac_host.coverage.placement`), and the result also gives its
+fitness
 from start poses drawn with that error, which the stencil never saw.
 """
 
@@ -33,9 +34,9 @@ from pac_host.coverage import (
     format_turn_cycle,
     simulate,
 )
+from pac_host.coverage.placement import WALKS, PlacementError, placed_fitness, summary
 from pac_host.errors import InputError
 from pac_host.model.effects import Effect
-from pac_host.placement import WALKS, PlacementError, placed_fitness, summary
 from pac_host.search import shapes
 from pac_host.search.kicks import check_length_cost
 from pac_host.search.local import SAMPLE, Objective, restarts

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pac_host import coverage_jit
+from pac_host.coverage import kernel as coverage_jit
 from pac_host.search.kicks import WEIGHT
 from pac_host.search.neighbours import _VALUES
 

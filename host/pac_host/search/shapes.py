@@ -80,7 +80,7 @@ class Library:
 
 def table_of(name: str, folder: Path | None = None) -> GaitTable:
     """A shape's table: a built-in table or robot name, or a table file (beside the library)."""
-    from pac_host import robots
+    from pac_host.model import robots
 
     if name in BUILTIN:
         return BUILTIN[name]()

@@ -43,8 +43,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pac_host import coverage_jit
 from pac_host.coverage import MAX_REPS
+from pac_host.coverage import kernel as coverage_jit
 from pac_host.errors import InputError
 from pac_host.model.kinematics import compose_moves, loop_moves
 from pac_host.search.kicks import WEIGHT

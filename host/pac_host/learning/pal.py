@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from pac_host import cga, limits, model_fit, model_ga, placement, test_selection
+from pac_host import limits
 from pac_host.coverage import (
     DEFAULT_BUDGET,
     MAX_REPS,
@@ -38,13 +38,15 @@ from pac_host.coverage import (
     coverage_score,
     fitness_of_score,
     format_turn_cycle,
+    placement,
     simulate,
 )
 from pac_host.errors import InputError
+from pac_host.learning import model_fit, model_ga, test_selection
+from pac_host.learning.robot_time import seconds_of_tests
 from pac_host.model.effects import Effect
 from pac_host.model.table import GaitTable
-from pac_host.robot_time import seconds_of_tests
-from pac_host.search import shapes
+from pac_host.search import cga, shapes
 from pac_host.search.kicks import check_length_cost, loop_table
 from pac_host.search.shorten import check_shorten_after
 
@@ -134,11 +136,12 @@ class PALConfig:
     # ``model_generations`` of the model GA on top (0: the fitted table alone).
     correction: str = "fit"
     structure: str = "effects"  # with "fit": "effects" or "none" (rows by evidence alone)
-    # "paper": best + two perturbations; "informative" and "rows": pac_host.test_selection
+    # "paper": best + two perturbations; "informative" and "rows": pac_host.learning.test_selection
     tests: str = "rows"
     operational: str = "tested"  # "best": only the CGA's best may replace it (the paper)
     # With an anytime search: "POS_CM,HEAD_DEG", score turn cycles from a stencil of start poses
-    # for a robot placed by hand with these standard deviations (pac_host.placement); "none":
+    # for a robot placed by hand with these standard deviations (pac_host.coverage.placement);
+    # "none":
     # from the exact start alone
     placement: str = "none"
     # With an anytime search: score each turn cycle on this many of the corrected model's
@@ -187,7 +190,7 @@ class PALConfig:
     # again with the rows on every run each punctuation (True), or kept as the structure
     # selection estimated them on its latest runs (False, runs saved before it), whose
     # transition off by 0.01 left a misfit that predicted 49 blocks where the robot covered 32
-    # (pac_host.model_fit.refine_effects)
+    # (pac_host.learning.model_fit.refine_effects)
     refine_effects: bool = False
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
@@ -424,7 +427,8 @@ def punctuate(
 
 
 def choose_tests(state: PALState, rng: np.random.Generator, cfg: PALConfig) -> np.ndarray:
-    """The turn cycles to run: the CGA's best and two more (:mod:`pac_host.test_selection`)."""
+    """The turn cycles to run: the CGA's best and two more
+    (:mod:`pac_host.learning.test_selection`)."""
     best = state.cga_pop[0]
     pert = perturbations(best, rng, cfg)
     if cfg.tests == "paper":
@@ -444,7 +448,8 @@ def choose_tests(state: PALState, rng: np.random.Generator, cfg: PALConfig) -> n
 
 def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult],
                     rng: np.random.Generator, cfg: PALConfig):
-    """The whole-table correction from every observed step (:mod:`pac_host.model_fit`), then
+    """The whole-table correction from every observed step (:mod:`pac_host.learning.model_fit`),
+    then
     the model GA (``cfg.method``) on the rows these tests used, if ``model_generations``."""
     if any(r.poses is None for r in results):
         raise InputError("model correction 'fit' needs the robot's observed paths; this observer "

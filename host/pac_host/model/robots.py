@@ -11,7 +11,7 @@ recognising it. These robots are made to be hard in different ways (docs/learnin
 - ``outside_library``: an effect outside the library, turning slows the stride and stretches
   the heading change more than in proportion with the turn's strength.
 
-Each is a pure function of its seed; ``python -m pac_host.robots DIR`` writes them as
+Each is a pure function of its seed; ``python -m pac_host.model.robots DIR`` writes them as
 pac-gait-table/1 files for ``pac-host experiment --actual FILE``.
 
 >>> t = build("asymmetric")

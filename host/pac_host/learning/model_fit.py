@@ -15,7 +15,7 @@ it started. This module corrects the whole table from every step observed so far
    the offsets of rows with strong evidence), so on a robot the structure explains, unused rows
    stay at the structure, and on a robot with independent row errors they stay uncertain.
    Where the offsets are smooth across gait cycles of similar turn strength (an effect outside
-   the library), the smooth prior of :mod:`pac_host.row_prior` carries them to unused rows.
+   the library), the smooth prior of :mod:`pac_host.learning.row_prior` carries them to unused rows.
    Optionally (``refine=True``) the sequence and world effects' parameters are first fitted
    again on every run with the rows (:func:`refine_effects`): the selection estimates them on
    the latest runs with held-out splits, and a transition off by 0.01 leaves the rows a misfit
@@ -23,11 +23,12 @@ it started. This module corrects the whole table from every step observed so far
 
 The result is a Gaussian posterior over the table: a mean (the CGA's model), a covariance per
 component, and the evidence (observed steps) of each row. Samples of it are a population of
-models whose disagreement says which tests would teach most (:mod:`pac_host.test_selection`).
+models whose disagreement says which tests would teach most
+(:mod:`pac_host.learning.test_selection`).
 
 >>> import numpy as np
 >>> from pac_host.model import measured_table, shifted_table
->>> from pac_host.pal import SimulatedRobot
+>>> from pac_host.learning.pal import SimulatedRobot
 >>> tests = np.array([[[12, 20], [3, 8], [19, 6]]])
 >>> res = SimulatedRobot(shifted_table()).run_tests(tests)
 >>> obs = [Observed(expand_ids(tests[0], 200), res[0].poses)]
@@ -44,15 +45,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from pac_host import row_prior
 from pac_host.coverage import expand
 from pac_host.diagnose import Run, split_runs
 from pac_host.diagnose.pipeline import select_effects
 from pac_host.diagnose.residuals import Batch, batch_of, predicted_moves, row_design, step_residuals
 from pac_host.errors import InputError
+from pac_host.learning import row_prior
+from pac_host.learning.model_ga import DEFAULT_SCALE
 from pac_host.model.effects import EFFECT_SPECS, Effect, effective_rows
 from pac_host.model.table import N_IDS, GaitTable
-from pac_host.model_ga import DEFAULT_SCALE
 
 STRUCTURES = ("none", "effects")
 MIN_RUNS_FOR_EFFECTS = 2  # the diagnosis holds whole runs out: it needs at least two
@@ -250,7 +251,7 @@ def refine_effects(rows: np.ndarray, batch: Batch, effects: Sequence[Effect],
     >>> from pac_host.diagnose import Run
     >>> from pac_host.model import measured_table
     >>> from pac_host.model.effects import Effect
-    >>> from pac_host.pal import SimulatedRobot
+    >>> from pac_host.learning.pal import SimulatedRobot
     >>> truth = GaitTable(measured_table().rows, (Effect("transition", {"alpha": 0.3}),))
     >>> tc = np.array([[[12, 3], [3, 2], [19, 4]]])
     >>> res = SimulatedRobot(truth).run_tests(tc)[0]

@@ -1,4 +1,4 @@
-"""A sweep cell's settings, mapped onto :class:`~pac_host.experiment.ExperimentConfig`.
+"""A sweep cell's settings, mapped onto :class:`~pac_host.experiments.experiment.ExperimentConfig`.
 
 The mapping is generic: every field of the config, nested ones included, is a setting, named by
 its dotted path (``pal.cga.bit_mutation_rate``) or, where the name is unambiguous, by the field's
@@ -25,7 +25,7 @@ from functools import cache
 from typing import Any
 
 from pac_host.errors import InputError
-from pac_host.experiment import ExperimentConfig
+from pac_host.experiments.experiment import ExperimentConfig
 from pac_host.typed_values import coerce
 
 TABLE_SETTINGS = {"actual": "shifted", "model": "measured", "effects": ()}

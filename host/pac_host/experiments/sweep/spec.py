@@ -30,15 +30,15 @@ from pathlib import Path
 from typing import Any
 
 from pac_host.errors import InputError
-from pac_host.experiment import ExperimentConfig
-from pac_host.model import GaitTable, load_with_effects
-from pac_host.model.table import BUILTIN
-from pac_host.sweep.settings import (
+from pac_host.experiments.experiment import ExperimentConfig
+from pac_host.experiments.sweep.settings import (
     TABLE_SETTINGS,
     canonical_name,
     check_value,
     experiment_config,
 )
+from pac_host.model import GaitTable, load_with_effects
+from pac_host.model.table import BUILTIN
 
 SECTIONS = ("settings", "grid", "cells")
 

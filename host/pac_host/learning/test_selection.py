@@ -21,7 +21,7 @@ wrongly (the end of the strength range) the search, which trusts the model, neve
 
 >>> import numpy as np
 >>> from pac_host.model import measured_table
->>> from pac_host.model_ga import perturbed_population
+>>> from pac_host.learning.model_ga import perturbed_population
 >>> rng = np.random.default_rng(0)
 >>> models = perturbed_population(measured_table().rows, 8, rng)
 >>> pop = np.array([[[12, 20], [3, 8]], [[12, 20], [3, 8]], [[12, 5], [20, 9]],

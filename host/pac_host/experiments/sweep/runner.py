@@ -1,6 +1,6 @@
 """Run a sweep's cells on an executor, each cell's results on disk as soon as it finishes.
 
-Each cell is one :func:`~pac_host.experiment.run_experiment` in ``OUT/cells/ID/`` (its
+Each cell is one :func:`~pac_host.experiments.experiment.run_experiment` in ``OUT/cells/ID/`` (its
 ``summary.json``, ``log.jsonl``, ``optimum.json``); its tasks (optimum runs, starting
 populations, one PAL run per seed and method) go to the executor, several cells at a time so
 a cluster's workers stay busy between one cell's stages. Every task carries its own seed, so
@@ -20,11 +20,11 @@ from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from pathlib import Path
 
 from pac_host.errors import InputError
-from pac_host.executors import Executor
-from pac_host.experiment import run_experiment
+from pac_host.experiments.executors import Executor
+from pac_host.experiments.experiment import run_experiment
+from pac_host.experiments.sweep.results import cell_rows, finish_rows, write_tables
+from pac_host.experiments.sweep.spec import Cell
 from pac_host.files import write_atomic
-from pac_host.sweep.results import cell_rows, finish_rows, write_tables
-from pac_host.sweep.spec import Cell
 
 # progress(event, cell, cells done, cells in all, seconds): event "skipped" or "finished"
 Progress = Callable[[str, Cell, int, int, float], None]

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, MAX_GENES, START_POSE, simulate
-from pac_host.ga_ops import elite_indices, tournament, two_point_crossover
 from pac_host.model.effects import Effect
+from pac_host.search.ga_ops import elite_indices, tournament, two_point_crossover
 
 ID_BITS = 5
 REPS_BITS = 6

@@ -1,11 +1,14 @@
-"""Named settings profiles: each is a dict of :class:`pac_host.pal.PALConfig` field overrides.
+"""Named settings profiles: each is a dict of :class:`pac_host.learning.pal.PALConfig` field
+overrides.
 
-- ``paper``: the paper's method (:data:`pac_host.pal.PAPER`: its model GA on the six coverage
+- ``paper``: the paper's method (:data:`pac_host.learning.pal.PAPER`: its model GA on the six
+coverage
   differences, its tests, its operational rule) and its search, 40 generations of the plain
   CGA (population 128, today's operators) between punctuations; the experiment establishes its
   optimum with long CGA runs. It reproduces the figures published for the paper's experiment,
   seed for seed.
-- ``default``: :class:`~pac_host.pal.PALConfig`'s model side (the whole-table correction) and
+- ``default``: :class:`~pac_host.learning.pal.PALConfig`'s model side (the whole-table correction)
+and
   anytime PAL: between punctuations the CGA's place is taken by iterated local search
   (:mod:`pac_host.search`) with a budget of coverage evaluations per punctuation, run while the
   robot walks the tests; the experiment's optimum comes from
@@ -38,7 +41,7 @@ from __future__ import annotations
 from dataclasses import fields, replace
 
 from pac_host.errors import InputError
-from pac_host.pal import PAPER
+from pac_host.learning.pal import PAPER
 from pac_host.search.kicks import SHORTER
 from pac_host.search.shorten import SHORTEN_AFTER
 

@@ -1,6 +1,7 @@
 """The prior over a table's row offsets, fitted to the observed steps (empirical Bayes).
 
-The whole-table correction (:mod:`pac_host.model_fit`) estimates, per component (F, T, dH), an
+The whole-table correction (:mod:`pac_host.learning.model_fit`) estimates, per component (F, T,
+dH), an
 offset for each of the 32 rows by Bayesian linear regression. The plain prior makes the
 offsets independent, ``N(0, a^2 I)``: an unused row stays where the structure put it. A robot
 can also be wrong in a way no effect of the library names, yet smoothly across its gait cycles

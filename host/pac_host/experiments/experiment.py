@@ -28,14 +28,17 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_host import cga, limits, model_ga, pal, stats
+from pac_host import limits
 from pac_host.coverage import fitness_of_score, format_turn_cycle, parse_turn_cycle, simulate
+from pac_host.coverage.placement import HAND, WALKS, placed_fitness, summary
 from pac_host.errors import InputError
-from pac_host.executors import Executor, local_executor
+from pac_host.experiments import stats
+from pac_host.experiments.executors import Executor, local_executor
 from pac_host.files import write_atomic
+from pac_host.learning import model_ga, pal
 from pac_host.model.effects import effective_rows
 from pac_host.model.table import GaitTable, measured_table, shifted_table
-from pac_host.placement import HAND, WALKS, placed_fitness, summary
+from pac_host.search import cga
 from pac_host.search.optimize import OptimizeConfig, run_chain
 
 # seed streams; STAGE_PLACED draws the start poses a run's final turn cycle is walked from
@@ -338,7 +341,8 @@ def partial_against_full(partial: dict[Hashable, Sequence[int]],
 
 def _map(fn: Callable, args: list[tuple], jobs: int | Executor,
          done: Callable[[object], None] | None = None) -> list:
-    """Map on the executor given, or on ``jobs`` local processes (see :mod:`pac_host.executors`)."""
+    """Map on the executor given, or on ``jobs`` local processes (see
+    :mod:`pac_host.experiments.executors`)."""
     if isinstance(jobs, Executor):
         return jobs.map(fn, args, done)
     with local_executor(jobs) as ex:
@@ -377,7 +381,8 @@ def run_experiment(
 ) -> dict:
     """Run the experiment, writing log.jsonl as it goes and summary.json at the end.
 
-    ``jobs``: local worker processes, or an :class:`~pac_host.executors.Executor` (a Dask
+    ``jobs``: local worker processes, or an :class:`~pac_host.experiments.executors.Executor` (a
+    Dask
     cluster); the results do not depend on it."""
     cfg.check()
     model = model or measured_table()

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pac_host import coverage_jit
+from pac_host.coverage import kernel as coverage_jit
 from pac_host.errors import InputError
 from pac_host.limits import SIM_BUDGET
 from pac_host.model.effects import (
@@ -450,7 +450,7 @@ class Scorer:
 
     ``start_pose`` is one pose (3,) or K of them (K, 3): with K, each turn cycle is walked from
     every one and :meth:`both`'s search scores are pooled over the walks
-    (:func:`pooled_search_score`; :mod:`pac_host.placement` makes such poses). ``models``
+    (:func:`pooled_search_score`; :mod:`pac_host.coverage.placement` makes such poses). ``models``
     (M, 32, 3), other tables the robot may be (draws from a model's posterior), are walked
     too, from every start pose, and pooled the same way: a turn cycle that relies on rows the
     tables disagree on scores lower.

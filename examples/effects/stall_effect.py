@@ -1,6 +1,6 @@
 """A user-defined effect: the robot stalls on a share of its gait cycles.
 
-Load it with ``--effects-module docs/examples/stall_effect.py`` in ``pac-host simulate``,
+Load it with ``--effects-module examples/effects/stall_effect.py`` in ``pac-host simulate``,
 ``experiment``, ``evolve`` (for ``--sim-effect``), ``diagnose`` and ``pac-sim``; then
 ``stall:p=0.2`` is an effect like any built-in one (``--effect``, ``--sim-effect``, a table's
 ``effects``), and the diagnosis tries it with the library's effects.

@@ -32,13 +32,14 @@ from typing import get_type_hints
 
 import numpy as np
 
-from pac_host import limits, pal
+from pac_host import limits
 from pac_host.coverage import START_POSE, detect_blocks, format_turn_cycle
 from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError
-from pac_host.experiment import ExperimentConfig, initial_population
+from pac_host.experiments.experiment import ExperimentConfig, initial_population
 from pac_host.files import write_atomic
+from pac_host.learning import pal
+from pac_host.learning.pal import model_generations_for
 from pac_host.model.table import GaitTable, resolve_table, save_table
-from pac_host.pal import model_generations_for
 from pac_host.robot.connect import Connection
 from pac_host.robot.linked import AppendLog, LinkedRobot
 from pac_host.typed_values import coerce

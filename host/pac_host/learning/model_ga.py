@@ -27,9 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, expand, simulate
-from pac_host.ga_ops import elite_indices, tournament, two_point_crossover
 from pac_host.model.effects import Effect, step_moves
 from pac_host.model.kinematics import moves_between
+from pac_host.search.ga_ops import elite_indices, tournament, two_point_crossover
 
 METHODS = ("full", "partial")
 FITNESSES = ("coverage", "steps")

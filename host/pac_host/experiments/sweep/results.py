@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from pac_host.experiments.sweep.spec import Cell
 from pac_host.files import write_atomic
-from pac_host.sweep.spec import Cell
 
 FORMAT = "pac-sweep/1"
 CURVES = ("curve_generations", "curve_coverage")  # in the JSON rows, not in the CSV

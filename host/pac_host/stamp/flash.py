@@ -1,7 +1,7 @@
 """Flash the robot and check the result: the BS2 download, then HELLO from the new firmware.
 
 Sits between the CLI and the loader: opens the port (DTR deasserted, as the protocol requires),
-runs :class:`pac_host.stamp_loader.StampLoader`, and, when the image is the ServoBot firmware,
+runs :class:`pac_host.stamp.loader.StampLoader`, and, when the image is the ServoBot firmware,
 asks the freshly started program HELLO and compares the firmware version it reports with the
 image's. Nothing here prints; progress goes to the callback.
 
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pac_host.stamp_image import StampImage
-from pac_host.stamp_loader import FlashError, FlashReport, NoStampError, Progress, StampLoader
+from pac_host.stamp.image import StampImage
+from pac_host.stamp.loader import FlashError, FlashReport, NoStampError, Progress, StampLoader
 from pac_protocol.link import StampLink
 from pac_protocol.port import open_port
 

@@ -8,7 +8,7 @@ port, which echoes every byte the host sends:
 2. Identification: the host sends ``B``, ``S``, ``2``; after the echo of each, a BS2 answers the
    byte's two's complement (``0xBE 0xAD 0xCE``). Then the host sends ``0x00`` and the BS2 answers
    its interpreter version (BCD, ``0x10`` = 1.0).
-3. Program packets (18 bytes, :mod:`pac_host.stamp_image`): after the echo of each packet the
+3. Program packets (18 bytes, :mod:`pac_host.stamp.image`): after the echo of each packet the
    BS2 writes the block and answers one acknowledgement byte, ``0x00`` = written
    (``0x01`` = the packet arrived damaged, ``0x02`` = EEPROM write failed).
 4. End of download: the host sends ``0x00`` where the next packet's address byte would be (a
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import serial
 
 from pac_host.errors import PacError
-from pac_host.stamp_image import ADDRESS_FLAG, BLOCK_SIZE, PACKET_SIZE, StampImage
+from pac_host.stamp.image import ADDRESS_FLAG, BLOCK_SIZE, PACKET_SIZE, StampImage
 from pac_protocol.frame import HEADER, SYNC
 
 ID_BYTES = b"BS2"

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pac_host.experiments.sweep.spec import Cell
 from pac_host.plots import METHOD_COLOURS, _save, plt
-from pac_host.sweep.spec import Cell
 
 
 def _groups(rows: list[dict]) -> dict[tuple[int, str], list[dict]]:

@@ -1,0 +1,1 @@
+"""Experiments over many seeds and sweeps over grids of settings."""

@@ -1,0 +1,1 @@
+"""Punctuated anytime learning: the PAL loop, the model GA and the model fit."""
