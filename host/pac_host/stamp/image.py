@@ -124,7 +124,7 @@ def tokenizer_script(source: Path) -> Path:
     """``tools/tokenize.js`` beside the source, else the repository's ``firmware/tools``."""
     for cand in (
         source.resolve().parent / "tools" / "tokenize.js",
-        Path(__file__).resolve().parents[2] / "firmware" / "tools" / "tokenize.js",
+        Path(__file__).resolve().parents[3] / "firmware" / "tools" / "tokenize.js",
     ):
         if cand.is_file():
             return cand
