@@ -17,6 +17,7 @@ PROTOCOL_VERSION = 1
 MAX_GENES = 9
 MAX_GAIT = 31
 MAX_REPS = 63
+POWER_ON_MOD = 65536  # the Stamp's counts (gait cycles since power-on, ...) are 16 bits
 
 
 class Cmd(IntEnum):

@@ -16,13 +16,9 @@ from pathlib import Path
 import click
 
 from pac_host import limits
-from pac_host.cli.options import (
-    effect_option,
-    effects_module_option,
-    load_with_effects,
-    table_option,
-)
 from pac_host.errors import TOOLKIT_ERRORS, InputError, exit_code
+from pac_host.model import load_with_effects
+from pac_host.model.effects_module import load_effects_module
 from pac_sim.line import WINDOW_FLOOR_S, Faults
 from pac_sim.runner import SimConfig, SimStamp
 from pac_sim.targeted import parse_targets
@@ -92,6 +88,16 @@ def build_config(**o: object) -> SimConfig:
     )
 
 
+def _load_modules(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) -> None:
+    """``--effects-module``: loaded while the options are parsed, before the table is read."""
+    try:
+        for path in value:
+            load_effects_module(path)
+    except InputError as e:
+        click.echo(f"{ctx.find_root().info_name}: error: {e}", err=True)
+        ctx.exit(exit_code(e))
+
+
 def _report_downloads(stamp: object, seen: int) -> int:
     """One line on stderr for each download session that ended since the last call."""
     sessions = stamp.downloads
@@ -111,9 +117,17 @@ def _report_downloads(stamp: object, seen: int) -> int:
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
-@table_option("shifted", "The robot's true gait table: measured, shifted or a table file.")
-@effect_option()
-@effects_module_option()
+# the simulator's own options (a simulator is no client of the host's CLI); the table, effect
+# and module are read by the model's loaders, as pac-host's --table and --effect are
+@click.option("--table", "table_spec", default="shifted", show_default=True,
+              metavar="measured|shifted|FILE",
+              help="The robot's true gait table: measured, shifted or a table file.")
+@click.option("--effect", "effect_specs", multiple=True, metavar="NAME:P=V,...",
+              help="Add an unmodelled effect, e.g. transition:alpha=0.3 (repeatable).")
+@click.option("--effects-module", multiple=True, metavar="FILE.py", is_eager=True,
+              expose_value=False, callback=_load_modules,
+              help="Python file defining effects with pac_host.model.effects.register_effect "
+                   "(repeatable; see docs/reference/effects.md).")
 @click.option(
     "--start",
     default="45,30,90",

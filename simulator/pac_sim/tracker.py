@@ -13,35 +13,15 @@ from __future__ import annotations
 import socket
 import threading
 
+from pac_protocol.tracker_line import format_placed, format_pose_line, parse_place
 from pac_sim.world import PoseSample, World
 
 HEADER = "# pac-sim tracker 1: POSE seq gait cycles_since_power_on x_cm y_cm h_deg\n"
 
 
 def format_pose(s: PoseSample) -> str:
-    x, y, h = s.observed
-    return f"POSE {s.seq} {s.gait} {s.power_on} {x:.3f} {y:.3f} {h:.3f}\n"
-
-
-def parse_place(line: str) -> tuple[tuple[float, float, float], int | None]:
-    """Parse ``PLACE x y h [seed]`` into the pose and the noise seed (None if not given)."""
-    parts = line.split()
-    if parts[:1] != ["PLACE"] or len(parts) not in (4, 5):
-        raise ValueError(f"expected PLACE x y h [seed], got {line.strip()!r}")
-    pose = (float(parts[1]), float(parts[2]), float(parts[3]))
-    seed = int(parts[4]) if len(parts) == 5 else None
-    if seed is not None and seed < 0:
-        raise ValueError(f"noise seed must be >= 0, got {seed}")
-    return pose, seed
-
-
-def parse_pose(line: str) -> PoseSample:
-    """Parse one POSE line (the observed pose; the true pose is unknown to a client)."""
-    parts = line.split()
-    if len(parts) != 7 or parts[0] != "POSE":
-        raise ValueError(f"not a POSE line: {line.strip()!r}")
-    pose = (float(parts[4]), float(parts[5]), float(parts[6]))
-    return PoseSample(int(parts[1]), int(parts[2]), int(parts[3]), pose, pose)
+    """The POSE line of a sample (the observed pose: a client never sees the true one)."""
+    return format_pose_line(s.seq, s.gait, s.power_on, s.observed) + "\n"
 
 
 class TrackerServer:
@@ -98,7 +78,7 @@ class TrackerServer:
                 try:
                     pose, seed = parse_place(line)
                     x, y, h = self.world.place(pose, seed)
-                    reply = f"PLACED {x:.3f} {y:.3f} {h:.3f}\n"
+                    reply = format_placed((x, y, h)) + "\n"
                 except ValueError as e:
                     reply = f"ERROR {e}\n"
                 with self._lock:

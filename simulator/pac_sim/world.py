@@ -13,9 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pac_host.coverage import START_POSE  # the paper's start pose
 from pac_host.model import Effect, GaitTable, integrate, step_moves
-
-START_POSE = (45.0, 30.0, 90.0)  # the paper's start pose
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from click.testing import CliRunner
 
 from pac_host.cli.main import main
@@ -19,6 +20,7 @@ def _invoke(*args):
     return CliRunner().invoke(main, list(args), catch_exceptions=False)
 
 
+@pytest.mark.slow
 def test_evolve_runs_diagnose_then_evolve_on_the_corrected_model(tmp_path):
     first = tmp_path / "evolve"
     res = _invoke("evolve", "--out", str(first), "--generations", "60", *SMALL,

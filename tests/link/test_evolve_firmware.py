@@ -26,6 +26,7 @@ def builtin(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("line", [(), ("--drop-prob", "0.01", "--corrupt-prob", "0.01",
                                        "--seed", "5")], ids=["clean", "noisy"])
 def test_evolve_against_the_firmware_in_the_loop(tmp_path, builtin, line):

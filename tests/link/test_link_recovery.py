@@ -137,6 +137,7 @@ def test_a_robot_switched_off_gives_up_within_the_stated_time(rig):
     assert "redoing the test" in str(e.value)
 
 
+@pytest.mark.slow
 def test_soak_at_1_percent_dropped_and_corrupted_bytes(baseline, tmp_path):
     """The short soak (the long one, 20 fault seeds, is `make bench`): 3 punctuations with 1%
     of the bytes dropped and 1% corrupted each way give exactly the clean run's decisions."""

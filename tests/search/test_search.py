@@ -274,30 +274,29 @@ def test_a_carried_chain_climbs_again_only_when_the_model_has_changed(monkeypatc
 
 
 def test_the_best_known_turn_cycles_score_as_recorded():
-    """The benchmarks and docs measure against bench/best_known.json (read by
-    bench/known_best.py): each record holds."""
-    import sys
-    from pathlib import Path
-
+    """`experiment`, the benchmarks and the docs measure against the package's record
+    (pac_host/model/best_known.json; bench/known_best.py reads the same, which
+    bench/test_tools.py checks): each record holds, simulated on its robot's table at the
+    record's budget."""
     from pac_host.coverage.placement import parse_placement, placed_fitness, summary
-    from pac_host.model import resolve_table, robots
+    from pac_host.model import best_known, robots
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
-    import known_best
-
-    records = known_best.entries()
-    assert set(records) >= {"shifted", *robots.ROBOTS}  # every built-in robot has its target
-    assert known_best.fitnesses() == {k: v["fitness"] for k, v in records.items()}
-    assert known_best.fitness("nobody") is None
+    records = best_known.entries()
+    assert set(records) >= {"measured", "shifted", *robots.ROBOTS}  # every built-in robot's
+    assert records["shifted"]["fitness"] == 49
+    assert records["shifted"]["turn_cycle"] == "12:2,11:2,22:11,18:4,13:3,4:5,9:6,6:2,0:3"
+    budget = best_known.budget()
+    assert budget == 200
     for name, rec in records.items():
-        table = robots.build(name) if name in robots.ROBOTS else resolve_table(name)
-        cov = simulate(table.rows, parse_turn_cycle(rec["turn_cycle"]), 200, table.effects)
+        table = best_known.builtin_table(name)
+        assert best_known.robot_of(table) == name
+        cov = simulate(table.rows, parse_turn_cycle(rec["turn_cycle"]), budget, table.effects)
         assert cov.row(0)["fitness"] == rec["fitness"], name
         if "placed" in rec:  # the best known for a robot placed by hand
             pl = rec["placed"]
             fit = placed_fitness(table.rows, parse_turn_cycle(pl["turn_cycle"]),
                                  parse_placement(pl["placement"]), pl["walks"],
-                                 np.random.default_rng(pl["seed"]), 200, table.effects)
+                                 np.random.default_rng(pl["seed"]), budget, table.effects)
             assert summary(fit)["mean"] == pl["mean"], name
 
 
@@ -337,59 +336,3 @@ def test_gene_change_moves_are_the_net_moves_of_the_changed_loops():
         changed = np.repeat(y[None], len(_VALUES), axis=0)
         changed[:, j] = _VALUES
         np.testing.assert_allclose(fast[j], loop_moves(changed, repeated), atol=1e-9)
-
-
-def test_the_exact_model_bench_finds_when_the_model_became_exact_and_every_crossover():
-    """bench/exact_model_search.py's two helpers, on which the docs' noisy_rows figures rest."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
-    from exact_model_search import crossovers, exact_from
-
-    def rec(err):
-        return {"model_error": [{"F": err, "T": 0.0, "dH": -err}, {"F": 0.0, "T": 0.0, "dH": 0.0}]}
-
-    # exact at punctuation 2, wrong again at 3: it counts from where it stays exact
-    assert exact_from([rec(0.5), rec(0.0), rec(0.2), rec(0.0), rec(0.0)]) == 4
-    assert exact_from([rec(0.0), rec(0.5)]) is None  # wrong at the end
-    a = parse_turn_cycle("1:1,2:2,3:3")
-    b = parse_turn_cycle("4:4,5:5,6:6")
-    kids = crossovers([a, b])
-    # one run of genes from the other parent: a and b themselves (an empty or a whole run),
-    # 4:4,2:2,3:3  4:4,5:5,3:3  1:1,5:5,3:3  1:1,5:5,6:6  1:1,2:2,6:6  4:4,2:2,6:6, none twice
-    assert len(kids) == 8
-    assert any((k == parse_turn_cycle("1:1,5:5,3:3")).all() for k in kids)
-    assert any((k == parse_turn_cycle("4:4,2:2,3:3")).all() for k in kids)
-
-
-def test_search_variants_bench_compares_costs_seed_for_seed(tmp_path, capsys):
-    """bench/search_variants.py, on which docs/search.md's kick length and shorter-loop figures
-    rest."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
-    import search_variants
-
-    out = search_variants.compare({"a": [40, 41, 42], "b": [41, 41, 40]})
-    assert out["a"] == {"finals": [40, 41, 42], "mean": 41.0}
-    assert (out["b"]["higher"], out["b"]["lower"], out["b"]["mean"]) == (1, 1, 40.667)
-    res = search_variants.main(["--robots", "shifted", "--evaluations", "3000", "--seeds",
-                                "0-1", "--shorten-after", "0,1", "--windows", "0,1", "--jobs", "1",
-                                "--out", str(tmp_path / "v.json")])
-    again = search_variants.one_run("shifted", str(tmp_path / "v.shifted.shapes.json"), 1,
-                                    3000, 1, 1.0, 1, False)
-    by = res["robots"]["shifted"]
-    assert set(by) == {search_variants.label(c, k, w) for c in (0, 1) for k in (0, 1)
-                       for w in (False, True)}
-    assert by["cost 1, shorten after 1, pairs only"]["finals"][1] == again  # seed for seed
-    assert res["pooled"]["cost 0, shorten after 0"]["finals"] == by["cost 0, shorten after 0"][
-        "finals"]
-    for bad in (["--robots", "nobody"], ["--seeds", "5-2"], ["--kick-length-costs", "0,-1"],
-                ["--kick-length-costs", "0,0"], ["--shorten-after", "-1"],
-                ["--shorten-after", "1.5"], ["--windows", "2"], ["--windows", "1,1"]):
-        with pytest.raises(SystemExit) as e:
-            search_variants.main([*bad, "--out", str(tmp_path / "b.json")])
-        assert e.value.code == 2
-        assert len(capsys.readouterr().err.strip().splitlines()[-1]) > 0

@@ -11,9 +11,9 @@ import pytest
 from pac_host.errors import InputError
 from pac_host.model import parse_effect, rollout, shifted_table
 from pac_protocol.link import StampLink
+from pac_protocol.tracker_line import parse_pose_line as parse_pose
 from pac_sim.eeprom import Eeprom
 from pac_sim.runner import SimConfig, SimStamp
-from pac_sim.tracker import parse_pose
 
 EFFECTS = tuple(
     parse_effect(e)
@@ -54,7 +54,7 @@ def test_tracker_publishes_one_line_per_gait_cycle(make_sim):
         assert head[0].startswith("# pac-sim tracker 1")
         snap = parse_pose(head[1])
         assert (snap.seq, snap.gait, snap.power_on) == (0, -1, 0)
-        assert np.allclose(snap.observed, (45, 30, 90), atol=10) and snap.observed != (45, 30, 90)
+        assert np.allclose(snap.pose, (45, 30, 90), atol=10) and snap.pose != (45, 30, 90)
         link = StampLink(port)
         link.hello()
         link.step(9, 3)
@@ -62,7 +62,7 @@ def test_tracker_publishes_one_line_per_gait_cycle(make_sim):
         got = [parse_pose(line) for line in _lines(s, 3)]
     assert [(g.seq, g.gait, g.power_on) for g in got] == [(1, 9, 1), (2, 9, 2), (3, 9, 3)]
     hist = sim.world.history
-    np.testing.assert_allclose([g.observed for g in got], [h.observed for h in hist], atol=6e-4)
+    np.testing.assert_allclose([g.pose for g in got], [h.observed for h in hist], atol=6e-4)
     err = np.array([h.observed for h in hist]) - np.array([h.true_pose for h in hist])
     assert np.all(np.abs(err) > 0)  # noise is applied
 

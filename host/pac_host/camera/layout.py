@@ -11,13 +11,13 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from pac_host.coverage import BLOCK_CM  # noqa: F401  (the blocks the camera draws)
 from pac_host.errors import InputError
 
 DICTIONARY = "DICT_4X4_50"  # few, large bits: robust at ~20 px per marker
 BOARD_DICTIONARY = "DICT_5X5_100"  # the lens board's own ids, never mistaken for floor markers
 AREA_X = (0.0, 180.0)
 AREA_Y = (0.0, 300.0)  # the part of the (upward unbounded) area a camera is set up to see
-BLOCK_CM = 60.0
 
 
 def dictionary(name: str) -> cv2.aruco.Dictionary:

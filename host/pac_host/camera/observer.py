@@ -24,7 +24,8 @@ from pac_host.camera.calibrate import Calibration
 from pac_host.camera.detect import MarkerPose, detect, fit_square, make_detector
 from pac_host.camera.layout import AREA_X, AREA_Y
 from pac_host.errors import InputError
-from pac_host.robot.observers import POWER_ON_MOD, Observation, ObserverError, Record
+from pac_host.observation import Observation, ObserverError, Record
+from pac_protocol.messages import POWER_ON_MOD
 
 SCALE_TOLERANCE = 0.15  # a marker seen this much bigger or smaller than printed is not it
 

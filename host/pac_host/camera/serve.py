@@ -14,7 +14,8 @@ import threading
 from collections.abc import Callable
 
 from pac_host.camera.observer import PoseFinder
-from pac_host.robot.observers import ASK_HEADER, ObserverError
+from pac_host.observation import ObserverError
+from pac_protocol.tracker_line import ASK_HEADER, format_pose_line
 
 UNKNOWN_GAIT = 32
 HEADER = (f"{ASK_HEADER} 1: send 'CYCLE power_on index'; answers 'POSE seq {UNKNOWN_GAIT} "
@@ -52,8 +53,7 @@ class PoseServer:
             return f"LOST {power_on} {why}"
         last["pose"] = pose
         self.seq += 1
-        x, y, h = pose
-        return f"POSE {self.seq} {UNKNOWN_GAIT} {power_on} {x:.3f} {y:.3f} {h:.3f}"
+        return format_pose_line(self.seq, UNKNOWN_GAIT, power_on, pose)
 
     def serve(self) -> None:
         """Serve clients one after another until :meth:`close`."""

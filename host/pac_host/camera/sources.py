@@ -25,7 +25,7 @@ import numpy as np
 
 from pac_host.camera.render import Renderer
 from pac_host.errors import InputError
-from pac_host.robot.observers import ObserverError
+from pac_host.observation import ObserverError
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 

@@ -24,11 +24,19 @@ from dataclasses import dataclass, field
 from pac_host.errors import TOOLKIT_ERRORS, PacError
 from pac_protocol.errors import NoAnswer, StampReset
 from pac_protocol.link import READY_TIMEOUT_S, StampLink
-from pac_protocol.messages import Boot, Cycle, Done, HelloReply, Reason, State, StatusReply
+from pac_protocol.messages import (
+    POWER_ON_MOD,
+    Boot,
+    Cycle,
+    Done,
+    HelloReply,
+    Reason,
+    State,
+    StatusReply,
+)
 from pac_protocol.port import open_port
 
 EVENT_TIMEOUT_S = 2.5  # one gait cycle (1.16 s) + the listening window + margin
-POWER_ON_MOD = 65536  # the Stamp's counts are 16 bits
 AGREEING_READS = 6  # STATUS replies asked, at most, for two that agree
 
 

@@ -1,5 +1,6 @@
 """Connect to a robot, its observer and its placer: a real one on a port, or the built-in
-emulator (``pac-sim`` in this process, on a real pseudo-terminal, with its tracker feed).
+emulator (``pac-sim`` in this process, on a real pseudo-terminal, with its tracker feed; opened
+by :mod:`pac_host.robot.emulator`, the host's one way into the simulator).
 
 Without a port, the emulator plays the robot and its tracker is the observer; the robot is
 placed at each start pose through the tracker socket, as an operator would place a real one.
@@ -15,28 +16,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pac_host.errors import InputError
-from pac_host.model import Effect, GaitTable
 from pac_host.model.effects import effective_rows
 from pac_host.robot.api import EVENT_TIMEOUT_S, StampRobot
+from pac_host.robot.emulator import EmulatorOptions, open_emulator
 from pac_host.robot.observers import Ask, Observer, TrackerObserver, open_observer
 from pac_host.robot.placement import OperatorPlacer, Placer, TrackerPlacer
 from pac_protocol.link import READY_TIMEOUT_S
-
-
-@dataclass(frozen=True)
-class EmulatorOptions:
-    """The built-in emulator's world and line (see ``pac-sim --help`` for each)."""
-
-    table: GaitTable
-    effects: tuple[Effect, ...] = ()
-    noise: tuple[float, float] = (0.5, 1.0)
-    realtime: float = 0.0
-    seed: int = 0
-    drop_prob: float = 0.0
-    corrupt_prob: float = 0.0
-    drop_at: tuple[str, ...] = ()  # KIND:N:BYTE, see pac_sim.targeted
-    corrupt_at: tuple[str, ...] = ()
-    mute_after: int | None = None
 
 
 @dataclass
@@ -94,27 +79,7 @@ def connect(
 
 def _emulated(stack: contextlib.ExitStack, observer_spec: str | None, o: EmulatorOptions,
               ask: Ask | None, manual_mode: str) -> Connection:
-    from pac_sim.line import Faults
-    from pac_sim.runner import SimConfig, SimStamp
-    from pac_sim.targeted import parse_targets
-
-    if o.realtime < 0:
-        raise InputError(f"--sim-realtime must be >= 0, got {o.realtime}")
-    if min(o.noise) < 0:
-        raise InputError(f"--sim-noise must be >= 0, got {o.noise}")
-    for name, p in (("--drop-prob", o.drop_prob), ("--corrupt-prob", o.corrupt_prob)):
-        if not 0 <= p <= 1:
-            raise InputError(f"{name} must be in [0, 1], got {p}")
-    try:
-        targets = parse_targets(o.drop_at, o.corrupt_at)
-    except ValueError as e:
-        raise InputError(str(e)) from None
-    sim = SimStamp(SimConfig(
-        factor=o.realtime, faults=Faults(o.drop_prob, o.corrupt_prob, targets=targets),
-        seed=o.seed,
-        table=o.table, effects=o.effects, tracker_noise=o.noise, tracker=("127.0.0.1", 0),
-        mute_after=o.mute_after,
-    ))
+    sim = open_emulator(o)
     stack.callback(sim.close)
     host, tport = sim.tracker.address
     placer = TrackerPlacer(host, tport)

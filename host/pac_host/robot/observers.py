@@ -14,6 +14,10 @@ returned or used. The kinds:
   (:class:`pac_host.camera.observer.CameraObserver`). A tracker stream that opens with
   :data:`ASK_HEADER` (``pac-host camera serve``) is asked for each gait cycle's pose.
 
+The types every observer shares (:class:`Observer`, :class:`Observation`,
+:class:`ObserverError`) live in :mod:`pac_host.observation`, which the camera imports without
+importing this module; the tracker's lines are :mod:`pac_protocol.tracker_line`'s.
+
 A malformed line, a closed stream or silence raises :class:`ObserverError` naming the observer;
 nothing is ever filled in with zeros.
 """
@@ -26,69 +30,25 @@ import socket
 import stat
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 
-from pac_host.errors import InputError, PacError
+from pac_host.errors import InputError
+from pac_host.observation import (  # noqa: F401  (the base types, importable from here too)
+    Ask,
+    Observation,
+    Observer,
+    ObserverError,
+    Record,
+)
+from pac_protocol.messages import POWER_ON_MOD
+from pac_protocol.tracker_line import ASK_HEADER, parse_pose_line
 
 TRACKER_TIMEOUT_S = 3.0  # a camera's pose for a finished gait cycle should come well within this
 GREETING_TIMEOUT_S = 10.0  # pac-sim's tracker greets a new client as soon as it is scheduled
-POWER_ON_MOD = 65536  # the Stamp's power-on count wraps at 16 bits
-# A stream that opens with this header wants to be asked: `CYCLE power_on index` for each gait
-# cycle (``pac-host camera serve``), and answers a POSE line or `LOST power_on why`.
-ASK_HEADER = "# pac-host camera"
-
-Record = Callable[[dict], None]
-Ask = Callable[[str], str]
-
-
-class ObserverError(PacError):
-    """An observer gave no usable observation (malformed line, closed stream, silence)."""
-
-
-@dataclass(frozen=True)
-class Observation:
-    """What an observer saw of one run: the poses after each gait cycle (n, 3), or the coverage
-    figures the operator counted, or only the final pose; and the pose the robot stood at
-    before its first gait cycle, if the observer saw it (``start``: a camera does)."""
-
-    poses: np.ndarray | None = None
-    figures: dict | None = None
-    final_pose: tuple[float, float, float] | None = None
-    start: tuple[float, float, float] | None = None
-
-
-class Observer(Protocol):
-    name: str
-
-    def begin(self, run_id: str, power_on_before: int, record: Record) -> None: ...
-    def on_cycle(self, power_on: int) -> None: ...
-    def finish(self, cycles: int) -> Observation: ...
-    def close(self) -> None: ...
 
 
 # ---- tracker streams -------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class PoseLine:
-    seq: int
-    gait: int
-    power_on: int
-    pose: tuple[float, float, float]
-
-
-def parse_pose_line(line: str) -> PoseLine:
-    """``POSE seq gait power_on x y h`` (simulator/README.md); ValueError otherwise."""
-    parts = line.split()
-    if len(parts) != 7 or parts[0] != "POSE":
-        raise ValueError("expected 'POSE seq gait power_on x y h'")
-    pose = (float(parts[4]), float(parts[5]), float(parts[6]))
-    if not all(np.isfinite(pose)):
-        raise ValueError("pose is not finite")
-    return PoseLine(int(parts[1]), int(parts[2]), int(parts[3]), pose)
 
 
 class LineSource:

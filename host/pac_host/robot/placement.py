@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from typing import Protocol
 
 from pac_host.robot.observers import LineSource, ObserverError, open_tcp
+from pac_protocol.tracker_line import format_place, parse_placed
 
 PLACE_TIMEOUT_S = 5.0
 
@@ -54,8 +55,7 @@ class TrackerPlacer:
 
     def place(self, run_id: str, pose: Sequence[float], noise_seed: int
               ) -> tuple[float, float, float]:
-        x, y, h = (float(v) for v in pose)
-        self.source.write_line(f"PLACE {x!r} {y!r} {h!r} {int(noise_seed)}")
+        self.source.write_line(format_place(pose, noise_seed))
         while True:
             line = self.source.readline(self.timeout)
             if line is None:
@@ -63,12 +63,12 @@ class TrackerPlacer:
             parts = line.split()
             if parts[:1] == ["ERROR"]:
                 raise ObserverError(f"{self.name}: PLACE refused: {line}")
-            if parts[:1] == ["PLACED"] and len(parts) == 4:
-                try:
-                    return float(parts[1]), float(parts[2]), float(parts[3])
-                except ValueError:
-                    pass
-                raise ObserverError(f"{self.name}: malformed answer to PLACE: {line!r}")
+            try:
+                placed = parse_placed(line)
+            except ValueError:
+                raise ObserverError(f"{self.name}: malformed answer to PLACE: {line!r}") from None
+            if placed is not None:
+                return placed
             # POSE lines broadcast to every client: not ours to use here
 
     def close(self) -> None:

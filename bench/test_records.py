@@ -1,26 +1,26 @@
-"""The recorded PAL runs behind docs/learning.md's 30-seed figures (bench/records): the figures
+"""The recorded PAL runs behind docs/results.md's 30-seed figures (bench/records): the figures
 are what the records give, every run's final turn cycle scores on the robot what the record
-says it walked, the issue's targets hold on them, and bench_learning resumes from a record."""
+says it walked, the issue's targets hold on them, and bench_learning resumes from a record.
+
+Records of past runs are no part of the test suite: ``python bench/run.py --only records``
+runs these checks (bench/bench_records.py), before it runs a recorded seed again."""
 
 from __future__ import annotations
 
 import gzip
 import json
-import sys
 from dataclasses import replace
 from pathlib import Path
 
+import bench_learning
+import learning_records
 import numpy as np
 import pytest
 
-BENCH = Path(__file__).resolve().parents[2] / "bench"
-sys.path.insert(0, str(BENCH))
+from pac_host.coverage import parse_turn_cycle, simulate
+from pac_host.experiments.experiment import partial_against_full
 
-import bench_learning  # noqa: E402
-import learning_records  # noqa: E402
-
-from pac_host.coverage import parse_turn_cycle, simulate  # noqa: E402
-from pac_host.experiments.experiment import partial_against_full  # noqa: E402
+BENCH = Path(__file__).resolve().parent
 
 RECORDED = learning_records.index()
 
@@ -214,12 +214,12 @@ def test_records_are_gzipped_json_lines():
                                                                     ["partial"])
 
 
-@pytest.mark.parametrize("doc", ["README.md", "docs/learning.md"])
+@pytest.mark.parametrize("doc", ["docs/results.md"])
 @pytest.mark.parametrize("what", sorted(learning_records.TABLES))
 def test_the_docs_tables_are_the_records(doc, what):
-    """The 30-seed table and the partial-against-full table in the README and
-    docs/learning.md are what ``python bench/learning_records.py table`` and ``... comparison``
-    print from the records, figure for figure."""
+    """The 30-seed table and the partial-against-full table in docs/results.md are what
+    ``python bench/learning_records.py table`` and ``... comparison`` print from the records,
+    figure for figure."""
     begin, end, make = learning_records.TABLES[what]
     text = (BENCH.parent / doc).read_text()
     assert begin in text and end in text, f"{doc} has no {what} of the records"
