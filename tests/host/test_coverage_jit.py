@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_host.coverage import START_POSE, _Runner, expand, search_score, simulate
+from pac_host.coverage import START_POSE, expand, search_score, simulate
 from pac_host.coverage import kernel as coverage_jit
+from pac_host.coverage.engine import _Runner
 from pac_host.model import measured_table, parse_effect, shifted_table, step_moves
 from pac_host.model.effects import ParamSpec, register_effect
 from pac_host.model.effects_module import forget_user_effects

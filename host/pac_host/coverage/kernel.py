@@ -35,7 +35,7 @@ _HALF_BODY = 6.0
 
 def _block(x: float, y: float, c: float, s: float) -> int:
     """Block detected at position (x, y) with heading cosine ``c`` and sine ``s``: as
-    ``coverage._detect``, one pose at a time, with the same floor of the same quotient. The
+    ``coverage.area._detect``, one pose at a time, with the same floor of the same quotient. The
     tests are combined without branches: whether a body straddles a border varies from pose
     to pose, and a mispredicted early return cost more than the arithmetic (measured: the
     kernel 13% faster on a search's batches, the same figures)."""
@@ -53,7 +53,7 @@ def _block(x: float, y: float, c: float, s: float) -> int:
 def _figures(blocks: np.ndarray, n: int, top: int, visits: np.ndarray, first: np.ndarray,
              out: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """(covered, covered once, fitness, repeat visits, reached at) of one path's detected
-    blocks (``top`` the highest) into ``out[:, k]``: as ``coverage.figures_from_blocks``.
+    blocks (``top`` the highest) into ``out[:, k]``: as ``coverage.scores.figures_from_blocks``.
     ``visits`` and ``first`` (the step each block was first detected at) are scratch buffers,
     grown when a path reaches further; returns them. One pass over the steps, then one over
     the blocks: the figures cost no more than the blocks a path reaches."""

@@ -2,7 +2,8 @@
 
 A loop the budget walks several times carries that error into every pass, and the fittest turn
 cycles from the exact start are often sharp: they graze block edges that a centimetre or a
-degree off the start misses (docs/search.md, "What a best known is not"). A search given a
+degree off the start misses (docs/explanation/learning.md, "What a best known is not"). A search
+given a
 :class:`PlacementError` scores each turn cycle from a stencil of start poses around the start
 (:meth:`PlacementError.stencil`) and pools the walks' figures
 (:func:`pac_host.coverage.pooled_search_score`), so it prefers sweeps that keep their coverage
@@ -20,14 +21,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pac_host.coverage import DEFAULT_BUDGET, START_POSE, simulate
+from pac_host.coverage.area import START_POSE
+from pac_host.coverage.engine import simulate
+from pac_host.coverage.turn_cycle import DEFAULT_BUDGET
 from pac_host.errors import InputError
 from pac_host.model.effects import Effect
 
 # The stencil moves each of x, y and heading this many standard deviations either way. Measured
 # on the shifted table (60 s searches, seeds 0-2, each scored from 200 drawn start poses at 0.5
 # cm and 1 deg): mean fitness 28.1 searching from the exact start alone, 29.5 with the stencil
-# at one standard deviation, 31.3 at two (docs/search.md, "Searching for a robot placed by hand").
+# at one standard deviation, 31.3 at two (docs/explanation/learning.md, "Searching for a robot
+# placed by hand").
 STENCIL_SDS = 2.0
 MAX_CM, MAX_DEG = 30.0, 45.0  # beyond these a "placement error" is a different start
 
@@ -66,7 +70,8 @@ class PlacementError:
         return f"{self.pos_cm:g},{self.head_deg:g}"
 
 
-# What a hand placement leaves, as the figures of docs/search.md assume: the built-in emulator's
+# What a hand placement leaves, as the figures of docs/explanation/learning.md assume: the built-in
+# emulator's
 # tracker noise too. `evolve` searches for it by default; `experiment` walks its results so.
 HAND = PlacementError(0.5, 1.0)
 WALKS = 200  # drawn start poses a result's placed fitness is measured from

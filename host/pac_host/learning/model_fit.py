@@ -28,7 +28,7 @@ models whose disagreement says which tests would teach most
 
 >>> import numpy as np
 >>> from pac_host.model import measured_table, shifted_table
->>> from pac_host.learning.pal import SimulatedRobot
+>>> from pac_host.learning.testing import SimulatedRobot
 >>> tests = np.array([[[12, 20], [3, 8], [19, 6]]])
 >>> res = SimulatedRobot(shifted_table()).run_tests(tests)
 >>> obs = [Observed(expand_ids(tests[0], 200), res[0].poses)]
@@ -251,7 +251,7 @@ def refine_effects(rows: np.ndarray, batch: Batch, effects: Sequence[Effect],
     >>> from pac_host.diagnose import Run
     >>> from pac_host.model import measured_table
     >>> from pac_host.model.effects import Effect
-    >>> from pac_host.learning.pal import SimulatedRobot
+    >>> from pac_host.learning.testing import SimulatedRobot
     >>> truth = GaitTable(measured_table().rows, (Effect("transition", {"alpha": 0.3}),))
     >>> tc = np.array([[[12, 3], [3, 2], [19, 4]]])
     >>> res = SimulatedRobot(truth).run_tests(tc)[0]

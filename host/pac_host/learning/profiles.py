@@ -17,10 +17,12 @@ and
   quarter of each budget searches a draw from the corrected model's posterior, whose best is
   tested after the best (``explore``: Thompson sampling). Eight chains search each corrected
   model, each with the whole budget, and the best any finds is tested (``search_chains``:
-  climbs from one start end in different basins; docs/learning.md). A closing kick weighs
+  climbs from one start end in different basins; docs/explanation/learning.md). A closing kick
+  weighs
   each gait cycle of the kicked loop as 1 cm of its repair's error (``kick_length_cost``:
   the same sweep in fewer gait cycles is walked more times in the budget; on noisy_rows 22/30
-  runs end at 95% of the best known against 16/30 without it, no robot lower; docs/search.md).
+  runs end at 95% of the best known against 16/30 without it, no robot lower;
+  docs/explanation/learning.md).
   A chain that has kicked five times without progress tries shorter loops of its sweep, two
   genes re-set so the pass ends where it did (``shorten_after``, :mod:`pac_host.search.shorten`),
   and if none climbs higher, four consecutive genes re-set (``shorten_windows``). A chain's
@@ -41,7 +43,7 @@ from __future__ import annotations
 from dataclasses import fields, replace
 
 from pac_host.errors import InputError
-from pac_host.learning.pal import PAPER
+from pac_host.learning.config import PAPER
 from pac_host.search.kicks import SHORTER
 from pac_host.search.shorten import SHORTEN_AFTER
 

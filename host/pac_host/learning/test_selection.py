@@ -17,7 +17,7 @@ of the rows of most posterior variance it does not use (:func:`teaching_variants
 informative choice's candidates all stay near the best, so rows no sweep near it uses stay
 unwalked for a whole run; the smooth prior extrapolates them, and where it extrapolates
 wrongly (the end of the strength range) the search, which trusts the model, never goes there
-(docs/learning.md, "Tests that walk the rows no test has walked").
+(docs/explanation/learning.md, "Tests that walk the rows no test has walked").
 
 >>> import numpy as np
 >>> from pac_host.model import measured_table

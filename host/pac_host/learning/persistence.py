@@ -1,0 +1,85 @@
+"""A PAL run saved and resumed exactly: its state and generator as a ``pac-pal-state/1`` JSON
+document (:func:`state_to_json`, :func:`state_from_json`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pac_host.errors import InputError
+from pac_host.learning import model_fit
+from pac_host.learning.state import PALState
+
+
+def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
+    """Everything needed to resume a PAL run exactly: the state and the generator's state.
+
+    Floats go through JSON's shortest round-trip representation, so a resumed run continues
+    bit for bit.
+    """
+    return {
+        "format": "pac-pal-state/1",
+        "generation": state.generation,
+        "cga_pop": state.cga_pop.tolist(),
+        "models": state.models.tolist(),
+        "model_effects": [e.to_json() for e in state.model_effects],
+        "operational": state.operational.tolist(),
+        "operational_score": state.operational_score,
+        "operational_fitness": state.operational_fitness,
+        "base": None if state.base is None else state.base.to_json(),
+        "observed": [{"gait_ids": o.gait_ids.tolist(), "poses": o.poses.tolist(),
+                      "cycles_since_power_on": o.cycles_since_power_on}
+                     for o in state.observed],
+        "search": state.search,
+        "structure": [e.to_json() for e in state.structure],
+        "structure_runs": state.structure_runs,
+        "rng": rng.bit_generator.state,
+    }
+
+
+def _search_from_json(doc) -> dict | None:
+    """The carried search of a state document, checked (None: none carried)."""
+    if doc is None:
+        return None
+    from pac_host.search.local import Chain
+
+    out = Chain.from_json(doc).to_json()
+    others = doc.get("others") or []
+    if not isinstance(others, list) or not all(isinstance(c, dict) for c in others):
+        raise InputError("a carried search's other chains must be a list of chains")
+    if others:  # chains 1.. of --search-chains
+        out["others"] = [Chain.from_json(c).to_json() for c in others]
+    if doc.get("explore") is not None:  # the best on a posterior draw, the next test
+        out["explore"] = np.asarray(doc["explore"], dtype=np.int64).reshape(-1, 2).tolist()
+    return out
+
+
+def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
+    """Inverse of :func:`state_to_json`."""
+    from pac_host.model.effects import effect_from_json
+    from pac_host.model.table import table_from_json
+
+    if not isinstance(doc, dict) or doc.get("format") != "pac-pal-state/1":
+        raise InputError("not a pac-pal-state/1 document")
+    try:
+        rng = np.random.default_rng()
+        rng.bit_generator.state = doc["rng"]
+        state = PALState(
+            int(doc["generation"]),
+            np.array(doc["cga_pop"], dtype=np.int64),
+            np.array(doc["models"], dtype=np.float64),
+            tuple(effect_from_json(e) for e in doc["model_effects"]),
+            np.array(doc["operational"], dtype=np.int64),
+            doc["operational_score"],
+            doc["operational_fitness"],
+            None if doc.get("base") is None else table_from_json(doc["base"], "PAL state base"),
+            tuple(model_fit.Observed(np.array(o["gait_ids"], dtype=np.int64),
+                                     np.array(o["poses"], dtype=np.float64),
+                                     int(o.get("cycles_since_power_on", 0)))
+                  for o in doc.get("observed", [])),
+            _search_from_json(doc.get("search")),
+            tuple(effect_from_json(e) for e in doc.get("structure", [])),
+            None if doc.get("structure_runs") is None else int(doc["structure_runs"]),
+        )
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"PAL state is incomplete or malformed ({e})") from None
+    return state, rng

@@ -1,0 +1,117 @@
+"""PAL's tests on the robot: what a test reports (:class:`TestResult`), what a robot is
+(:class:`Robot`, :class:`SimulatedRobot` the paper's simulated actual robot) and which turn
+cycles each punctuation tests (:func:`choose_tests`, from the CGA's best and
+:func:`perturbations` of it).
+
+>>> from pac_host.model import shifted_table
+>>> from pac_host.coverage import parse_turn_cycle
+>>> SimulatedRobot(shifted_table()).run_tests(parse_turn_cycle("12:63")[None])[0].fitness
+3
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from pac_host.coverage import (
+    DEFAULT_BUDGET,
+    MAX_REPS,
+    START_POSE,
+    Coverage,
+    coverage_score,
+    simulate,
+)
+from pac_host.learning import test_selection
+from pac_host.learning.config import PALConfig
+from pac_host.learning.state import PALState
+from pac_host.model.table import GaitTable
+from pac_host.search import cga
+
+
+@dataclass(frozen=True)
+class TestResult:
+    """What the robot did on one tested turn cycle: coverage figures, and the path if observed."""
+
+    blocks_covered: int
+    blocks_covered_once: int
+    fitness: int
+    repeat_visits: int
+    poses: np.ndarray | None = None
+
+    @property
+    def score(self) -> int:
+        return int(coverage_score(self.fitness, self.repeat_visits))
+
+    def figures(self) -> dict:
+        return {
+            "blocks_covered": self.blocks_covered,
+            "blocks_covered_once": self.blocks_covered_once,
+            "fitness": self.fitness,
+            "repeat_visits": self.repeat_visits,
+        }
+
+
+class Robot(Protocol):
+    """The robot side of PAL: runs each turn cycle from the start pose for the budget."""
+
+    def run_tests(self, tests: np.ndarray) -> list[TestResult]: ...
+
+
+def results_from_coverage(cov: Coverage) -> list[TestResult]:
+    poses = cov.poses if cov.poses is not None else [None] * len(cov.fitness)
+    return [
+        TestResult(int(c), int(o), int(f), int(r), p)
+        for c, o, f, r, p in zip(
+            cov.blocks_covered, cov.blocks_covered_once, cov.fitness, cov.repeat_visits, poses,
+            strict=True,
+        )
+    ]
+
+
+@dataclass
+class SimulatedRobot:
+    """The paper's simulated actual robot: a true table (with its effects) in the simulator."""
+
+    table: GaitTable
+    budget: int = DEFAULT_BUDGET
+    start_pose: Sequence[float] = START_POSE
+
+    def run_tests(self, tests: np.ndarray) -> list[TestResult]:
+        cov = simulate(self.table.rows, tests, self.budget, self.table.effects, self.start_pose,
+                       keep_paths=True)
+        return results_from_coverage(cov)
+
+
+def perturbations(best: np.ndarray, rng: np.random.Generator, cfg: PALConfig) -> np.ndarray:
+    """The paper's two test perturbations of the best turn cycle: +-1 on each non-zero
+    repetition count; and each gene, with probability 0.25, set to 50 repetitions."""
+    a = best.copy()
+    nz = a[:, 1] > 0
+    a[nz, 1] = np.clip(a[nz, 1] + rng.choice([-1, 1], size=int(nz.sum())), 0, MAX_REPS)
+    b = best.copy()
+    b[rng.random(len(b)) < cfg.perturb_prob, 1] = cfg.perturb_reps
+    return np.stack([a, b])
+
+
+def choose_tests(state: PALState, rng: np.random.Generator, cfg: PALConfig) -> np.ndarray:
+    """The turn cycles to run: the CGA's best and two more
+    (:mod:`pac_host.learning.test_selection`)."""
+    best = state.cga_pop[0]
+    pert = perturbations(best, rng, cfg)
+    if cfg.tests == "paper":
+        return np.concatenate([best[None], pert])
+    row_var = state.models.var(axis=0).sum(axis=-1)
+    hopeful = None
+    if cfg.search_models > 1:  # the best was chosen for being sure: test the model's hope too
+        alone = cga.fitness(state.models[0], state.cga_pop, cfg.budget, state.model_effects)
+        hopeful = state.cga_pop[int(np.argmax(alone))]
+    explored = (state.search or {}).get("explore") if cfg.explore > 0 else None
+    if explored is not None:  # the best on a plausible table takes that place
+        hopeful = np.array(explored, dtype=np.int64)
+    return test_selection.choose(best, pert, state.cga_pop, state.models, row_var, cfg.budget,
+                                 state.model_effects, hopeful=hopeful,
+                                 teach=test_selection.TEACHING_ROWS if cfg.tests == "rows" else 0)
