@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import click
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -121,7 +122,7 @@ def test_every_command_that_takes_an_effect_takes_the_module():
     for path in (["simulate"], ["experiment"], ["evolve"], ["measure"], ["diagnose"],
                  ["table", "show"], ["table", "export"]):
         cmd = main
-        for name in path:
-            cmd = cmd.commands[name]
+        for name in path:  # through get_command: the top-level group loads commands lazily
+            cmd = cmd.get_command(click.Context(cmd), name)
         assert "--effects-module" in params(cmd), path
     assert "--effects-module" in params(sim)

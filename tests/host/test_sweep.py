@@ -92,8 +92,9 @@ def test_settings_are_the_configs_fields_by_path_or_unambiguous_name():
     assert canonical_name("model-fitness") == "model_fitness"
     assert canonical_name("pal.cga.bit_mutation_rate") == "bit_mutation_rate"
     assert canonical_name("pal.cga.elite") == "pal.cga.elite"  # elite is also the model GA's
-    cfg = experiment_config({"budget": 50, "pal.cga.elite": 3, "pal.model.elite": 2,
-                             "methods": ["full"], "scale": [0.5, 0.5, 2.0]})
+    cfg = experiment_config({"profile": "paper", "budget": 50, "pal.cga.elite": 3,
+                             "pal.model.elite": 2, "methods": ["full"],
+                             "scale": [0.5, 0.5, 2.0]})
     assert (cfg.pal.budget, cfg.pal.cga.elite, cfg.pal.model.elite) == (50, 3, 2)
     assert cfg.methods == ("full",) and cfg.pal.model.scale == (0.5, 0.5, 2.0)
     for key, message in [("elite", "unknown setting 'elite'"),
@@ -126,7 +127,7 @@ def test_a_field_added_to_a_config_is_a_setting_without_a_change():
 def test_grid_cells_and_files(tmp_path):
     (tmp_path / "robots").mkdir()
     _run(["table", "export", str(tmp_path / "robots" / "r.json"), "--table", "measured"])
-    doc = {"settings": {"seeds": 3, "pal": {"cga": {"elite": 4}}},
+    doc = {"settings": {"profile": "paper", "seeds": 3, "pal": {"cga": {"elite": 4}}},
            "grid": {"methods": ["full", "partial"], "budget": [100, 150, 200],
                     "actual": ["shifted", "robots/r.json"]},
            "cells": [{"methods": "oracle"}, {"methods": "full", "budget": 100,
@@ -138,6 +139,23 @@ def test_grid_cells_and_files(tmp_path):
     assert {c.actual.name for c in cells} >= {"shifted", "r"}
     assert cells[-1].settings["methods"] == ["oracle"] and cells[-1].config.pal.budget == 200
     assert len({c.id for c in cells}) == len(cells)
+    assert all(c.settings["profile"] == "paper" and c.config.pal.correction == "ga"
+               and c.config.optimum_search == "cga" for c in cells)
+
+
+def test_a_cell_records_its_profile_and_compares_methods_that_differ():
+    """A cell's settings start from its profile (none: the configuration's own defaults), and
+    unless it sets methods it compares those that differ under it: full only where a model GA
+    runs."""
+    cells = parse_sweep({"grid": {"profile": ["paper", "default", "none"]},
+                         "cells": [{"model_generations": 10}]})
+    got = {c.settings["profile"]: c.config for c in cells[:3]}
+    assert got["paper"].methods == ("full", "partial", "oracle")
+    assert got["default"].methods == got["none"].methods == ("partial", "oracle")
+    assert got["default"].pal.search == "ils" and got["default"].optimum_search == "optimize"
+    assert got["none"].pal.search == "cga" and got["none"].pal.correction == "fit"
+    assert cells[3].settings == {"profile": "none", "model_generations": 10}
+    assert cells[3].config.methods == ("full", "partial", "oracle")
 
 
 # -- the same results whatever runs it --------------------------------------------------------
@@ -158,6 +176,10 @@ def test_sweep_writes_a_row_per_cell_seed_and_method(serial):
         assert r["best_known"] >= summary["optimum"]
     oracle = [r for r in doc["rows"] if r["method"] == "oracle"]
     assert oracle and all(r["effects"] == ["yaw_bias:delta=1.5"] for r in oracle)
+    assert all(r["profile"] == "none" for r in doc["rows"]) and "profile" in csv_lines[0]
+    for c in doc["cells"]:
+        assert json.loads((out / "cells" / c["id"] / "cell.json").read_text())[
+            "settings"]["profile"] == "none"
     for name in ("final_coverage.png", "mean_coverage.png"):
         assert (out / name).read_bytes()[:4] == b"\x89PNG"
     assert text.count(": done in") == 5 and "cells per minute" in text
@@ -187,6 +209,36 @@ def test_an_interrupted_sweep_resumes_to_the_same_results(serial, sweep_file, tm
     assert res.output.count("already done") == 4 and res.output.count(": done in") == 1
     assert _outputs(tmp_path) == _outputs(out)
     assert _sorted_logs(tmp_path) == _sorted_logs(out)
+
+
+def test_resume_refuses_a_folder_without_this_sweep_and_writes_nothing(serial, sweep_file,
+                                                                       tmp_path):
+    out, _ = serial
+    empty, run = tmp_path / "empty", tmp_path / "run"
+    empty.mkdir()
+    shutil.copytree(out, run)
+    other = tmp_path / "other.toml"
+    other.write_text(TINY.replace("seeds = 2", "seeds = 3"))
+
+    def files(d):
+        return {str(p.relative_to(d)): p.read_bytes() for p in d.rglob("*") if p.is_file()}
+
+    before = files(run)
+    for args, words in (([str(sweep_file), "--out", str(tmp_path / "missing")],
+                         "no such directory"),
+                        ([str(sweep_file), "--out", str(empty)], "the directory is empty"),
+                        ([str(sweep_file), "--out", str(run / "cells")],
+                         "no sweep.json there (not a sweep run)"),
+                        ([str(other), "--out", str(run)],
+                         f"SWEEP.toml {other} differs from the saved run's")):
+        res = _run(["sweep", *args, "--resume"])
+        assert res.exit_code == 2, res.output
+        lines = res.output.strip().splitlines()
+        assert len(lines) == 1 and words in lines[0], res.output
+    assert not (tmp_path / "missing").exists() and not any(empty.iterdir())
+    assert files(run) == before
+    saved = json.loads((run / "sweep.json").read_text())
+    assert saved["sweep_file"] == str(sweep_file.resolve()) and len(saved["cells"]) == 5
 
 
 def test_experiment_on_a_dask_scheduler_matches_the_local_run(cluster, tmp_path):
@@ -247,8 +299,12 @@ def test_a_worker_killed_mid_sweep_loses_nothing(cluster, serial, sweep_file, tm
     ("[grid]\nmethods = ['half']\n", [], "--methods takes full"),
     ("[grid]\nactual = ['nope.json']\n", [], "nope.json: cannot read"),
     ("[grid\n", [], "not valid TOML"),
-    ("[grid]\nmethods = ['full']\n", ["--scheduler", "tcp://127.0.0.1:1",
-                                      "--connect-timeout", "0.5"],
+    ("[grid]\nmethods = ['full', 'partial']\n", [],
+     "cell 1: --methods full: full differs from partial only in the model GA's recombination"),
+    ("[settings]\nprofile = 'fast'\n[grid]\nseeds = [1]\n", [],
+     "setting 'profile' takes paper, default, none, got 'fast'"),
+    ("[grid]\nmethods = ['partial']\n", ["--scheduler", "tcp://127.0.0.1:1",
+                                         "--connect-timeout", "0.5"],
      "cannot reach the Dask scheduler at tcp://127.0.0.1:1"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, text, extra, message):
@@ -270,6 +326,13 @@ def test_experiment_with_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_pat
 
 
 def test_the_documented_example_sweep_is_valid():
+    """It asks the paper's question where it has an answer: under the paper's profile, whose
+    model GA the recombination acts in."""
+    from pac_host.learning.config import recombination_inert
+
     cells = load_sweep(Path(__file__).resolve().parents[2] / "examples" / "sweep.toml")
     assert len(cells) == 2 * 2 * 3 + 3
     assert all(c.config.seeds == 30 for c in cells)
+    assert all(c.settings["profile"] == "paper" for c in cells)
+    assert not any(recombination_inert(c.config.pal) for c in cells)
+    assert {c.config.methods for c in cells} == {("full",), ("partial",), ("oracle",)}

@@ -10,7 +10,13 @@ import pytest
 from click.testing import CliRunner
 
 from pac_host.cli.main import main
-from pac_host.coverage import fitness_of_score, parse_turn_cycle, search_score, simulate
+from pac_host.coverage import (
+    fitness_of_score,
+    format_turn_cycle,
+    parse_turn_cycle,
+    search_score,
+    simulate,
+)
 from pac_host.model import measured_table, parse_effect, shifted_table
 from pac_host.model.kinematics import loop_moves
 from pac_host.search import cga
@@ -336,3 +342,99 @@ def test_gene_change_moves_are_the_net_moves_of_the_changed_loops():
         changed = np.repeat(y[None], len(_VALUES), axis=0)
         changed[:, j] = _VALUES
         np.testing.assert_allclose(fast[j], loop_moves(changed, repeated), atol=1e-9)
+
+
+def test_a_tiny_deadline_returns_the_start(tmp_path):
+    """--seconds shorter than one batch still scores the chains' starts, and returns the best
+    as a turn cycle `simulate` agrees with; never a traceback."""
+    out = tmp_path / "best.json"
+    res = CliRunner().invoke(main, ["optimize", "--seconds", "0.01", "--chains", "2",
+                                    "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    genes = parse_turn_cycle(doc["turn_cycle"])
+    assert fitness_of_score(_score(shifted_table().rows, genes)) == doc["fitness"] > 0
+    assert len(doc["chains"]) == 2 and all(c["evaluations"] > 0 for c in doc["chains"])
+    # a deadline already past stops a search only once it has scored something
+    obj = Objective(shifted_table().rows, deadline=0.0)
+    pop = cga.random_population(np.random.default_rng(0), 5)
+    assert len(obj(pop)) == 5 and obj.best is not None
+    with pytest.raises(Exhausted):
+        obj(pop)
+
+
+def test_shorter_loop_listings_stop_at_the_deadline():
+    from pac_host.search.kicks import loop_table
+    from pac_host.search.shorten import shorter_loops, shorter_windows
+
+    x = parse_turn_cycle("10:1,25:8,21:11,17:2,9:4,5:8,22:3,11:1,1:6")  # a 44-cycle loop
+    table = loop_table(shifted_table().rows)
+    assert len(shorter_loops(x, table, 200)) > 0
+    assert len(shorter_loops(x, table, 200, expired=lambda: True)) == 0
+    assert len(shorter_windows(x, table, 200, expired=lambda: True)) == 0
+    calls = []  # a deadline passing after the first window: that window's proposals alone
+    first = shorter_windows(x, table, 200, expired=lambda: calls.append(1) or len(calls) > 1)
+    whole = shorter_windows(x, table, 200)
+    assert 0 < len(first) < len(whole) and (first == whole[:len(first)]).all()
+
+
+def test_chains_run_in_turn_share_the_time_left(monkeypatch):
+    """A chain that overruns its share takes the excess from the next ones: the search ends
+    one overrun past --seconds, not one per chain."""
+    from pac_host.search import optimize as opt
+
+    class Clock:
+        now = 0.0
+
+        def perf_counter(self):
+            return self.now
+
+    clock, shares = Clock(), []
+
+    def chain(rows, effects, cfg, c, seconds, evaluations):
+        shares.append(seconds)
+        clock.now += seconds + 1.0  # each chain overruns by a second
+        return {"chain": c, "genes": [[12, 1]] + [[0, 0]] * 8, "score": 1,
+                "evaluations": 1, "seconds": seconds + 1.0, "trace": []}
+
+    monkeypatch.setattr(opt, "time", clock)
+    monkeypatch.setattr(opt, "run_chain", chain)
+    monkeypatch.setattr(opt, "_warm_up", lambda *a: None)
+    optimize(shifted_table().rows, OptimizeConfig(seconds=12.0, chains=3))
+    assert shares == [4.0, 3.5, 2.5] and clock.now == 13.0
+
+
+def test_ctrl_c_prints_and_writes_the_best_so_far(monkeypatch, tmp_path):
+    """KeyboardInterrupt mid-search: the best found so far is printed and written to --json
+    and --plot, one line says so, exit 130; before anything was scored, the line alone."""
+    from pac_host.search import optimize as opt
+
+    pop = cga.random_population(np.random.default_rng(7), 64)
+
+    def interrupted(objective, *args, **kwargs):
+        objective(pop)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(opt, "restarts", interrupted)
+    out, png = tmp_path / "best.json", tmp_path / "best.png"
+    res = CliRunner().invoke(main, ["optimize", "--seconds", "30", "--chains", "3",
+                                    "--json", str(out), "--plot", str(png)])
+    assert res.exit_code == 130, res.output
+    doc = json.loads(out.read_text())
+    best = pop[int(np.argmax(_search_score(shifted_table().rows, pop)))]
+    assert doc["turn_cycle"] == format_turn_cycle(best) and doc["interrupted"] is True
+    assert len(doc["chains"]) == 1  # the chains after the interrupted one never started
+    assert f"best turn cycle on shifted: {doc['turn_cycle']}" in res.output
+    last = res.output.strip().splitlines()[-1]
+    assert last.startswith("pac-host: interrupted") and "Traceback" not in res.output
+    assert png.stat().st_size > 0
+
+    def at_once(objective, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(opt, "restarts", at_once)
+    res = CliRunner().invoke(main, ["optimize", "--seconds", "30", "--json",
+                                    str(tmp_path / "none.json")])
+    assert res.exit_code == 130 and not (tmp_path / "none.json").exists()
+    assert res.output.strip().splitlines()[-1] == (
+        "pac-host: interrupted (work already written is kept)")

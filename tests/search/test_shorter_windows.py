@@ -110,7 +110,7 @@ def test_windows_lift_a_fifty_that_two_genes_cannot(fifty):
 def test_a_loops_windows_are_listed_once_per_objective(monkeypatch):
     calls: list[bytes] = []
 
-    def counting(x, repeated, budget):
+    def counting(x, repeated, budget, expired=None):
         calls.append(canonical(x, budget).tobytes())
         return np.empty((0,) + x.shape, dtype=np.int64)  # none lifts it
 

@@ -66,7 +66,8 @@ layout_option = click.option("--layout", "layout_path", type=click.Path(dir_okay
 
 @click.group("camera")
 def camera() -> None:
-    """An overhead camera with fiducial markers (docs/camera.md): sheets to print, grab frames,
+    """An overhead camera with fiducial markers (docs/how-to/camera.md): sheets to print, grab
+    frames,
     calibrate, check, serve poses, render a virtual camera's frames; `--observer camera:...`
     for evolve and measure."""
     _need_cv2()

@@ -7,6 +7,7 @@ import click
 
 from pac_host import limits
 from pac_host.cli.options import Bounded, effects_module_option, load_with_effects
+from pac_host.cli.resume import given  # noqa: F401  (re-exported for the commands)
 from pac_host.errors import InputError
 from pac_host.robot.connect import EmulatorOptions
 
@@ -19,8 +20,8 @@ OPTIONS = [
                  help="Where the robot really is: a tracker stream (TCP or named pipe, lines "
                       "'POSE seq gait power_on x y h'), an overhead camera (SOURCE a camera "
                       "index, video or folder with calib=FILE, or sim: the emulator's virtual "
-                      "camera; docs/camera.md) or the operator at a prompt. Default with the "
-                      "emulator: its tracker."),
+                      "camera; docs/how-to/camera.md) or the operator at a prompt. Default "
+                      "with the emulator: its tracker."),
     click.option("--placer", default="operator", show_default=True,
                  type=click.Choice(["operator", "tracker"]),
                  help="With --port: who puts the robot at each start pose: a person (asked, "
@@ -54,12 +55,6 @@ def link_options(f):
     for opt in reversed(OPTIONS):
         f = opt(f)
     return f
-
-
-def given(name: str) -> bool:
-    """True if the option was typed on the command line (not its default)."""
-    src = click.get_current_context().get_parameter_source(name)
-    return src is not None and src.name in ("COMMANDLINE", "ENVIRONMENT")
 
 
 SIM_NAMES = ("sim_table", "sim_effects", "sim_noise", "sim_realtime", "sim_seed", "drop_prob",

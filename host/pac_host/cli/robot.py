@@ -143,3 +143,13 @@ def register(main: click.Group) -> None:
         with session(port, timeout) as robot:
             robot.stop()
         click.echo("stop acknowledged")
+
+
+def _robot_group() -> click.Group:
+    holder = click.Group()
+    register(holder)
+    return holder.commands["robot"]
+
+
+#: the `robot` group on its own, as `pac-host` loads it (pac_host.cli.main.COMMANDS)
+robot_group = _robot_group()

@@ -37,7 +37,8 @@ from pac_host.model.effects import Effect, effective_rows
 from pac_host.model.kinematics import complex_moves, loop_moves, repeated_moves
 from pac_host.search.neighbours import _VALUES, slots
 
-# Measured (3 million evaluations a run, five tables, seeds 0-11; docs/search.md): the repair
+# Measured (3 million evaluations a run, five tables, seeds 0-11; docs/explanation/learning.md):
+# the repair
 # drawn from the 8 closest, a heading error weighted as 200 cm a radian.
 TOP = 8
 WEIGHT = 200.0  # cm of displacement error that weigh as much as one radian of heading error
@@ -46,7 +47,7 @@ WEIGHT = 200.0  # cm of displacement error that weigh as much as one radian of h
 # --kick-length-cost``; 0 is closeness alone). Measured on
 # the exact noisy_rows table, one chain of 3 million evaluations from the library, seeds
 # 100-115: 1 cm ends higher than 0 on 9 seeds and lower on none (mean 49.25 against 48.19; 3 cm
-# 48.81; docs/search.md, "Kicks that prefer shorter loops").
+# 48.81; docs/explanation/learning.md, "Kicks that prefer shorter loops").
 SHORTER = 1.0
 
 

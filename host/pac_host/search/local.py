@@ -50,11 +50,11 @@ class Objective:
     fitness reached sooner, then fewer repeat visits), which the searches compare;
     :meth:`fitness` reads the fitness from one. ``limit`` is the number of evaluations allowed
     (None: no limit); ``deadline`` a ``time.perf_counter()`` value after which no batch starts
-    (None: none). With ``finish`` the limit stops no call and cuts no batch: :meth:`spent`
-    says when it is reached, and a :class:`Chain` stops at the end of the move it is in
-    (a deadline or ``cancelled`` still stops a call). The best turn cycle ever scored, its
-    score (:meth:`Coverage.score`, as everything outside the searches ranks turn cycles) and
-    when it was found (evaluations, seconds, fitness) are kept as a trace.
+    once one has been scored (None: none). With ``finish`` the limit stops no call and cuts no
+    batch: :meth:`spent` says when it is reached, and a :class:`Chain` stops at the end of the
+    move it is in (a deadline or ``cancelled`` still stops a call). The best turn cycle ever
+    scored, its score (:meth:`Coverage.score`, as everything outside the searches ranks turn
+    cycles) and when it was found (evaluations, seconds, fitness) are kept as a trace.
 
     With a ``placement`` error each turn cycle is walked from the placement's stencil of start
     poses around ``start_pose`` and the search scores are pooled over the walks
@@ -121,6 +121,15 @@ class Objective:
         total = int(fitness_of_search_score(search_score, self.budget, self.starts))
         return total if self.starts == 1 else total / self.starts
 
+    def expired(self) -> bool:
+        """Whether the deadline has passed or the search is cancelled. A deadline stops a search
+        only once it has scored something: the first batch always runs, so a search given too
+        little time still returns its start."""
+        if self.cancelled is not None and self.cancelled():
+            return True
+        return (self.deadline is not None and self.best is not None
+                and time.perf_counter() >= self.deadline)
+
     def remaining(self) -> int | None:
         return None if self.limit is None else self.limit - self.evaluations
 
@@ -133,9 +142,7 @@ class Objective:
         """Search scores of turn cycles (N, 9, 2); raises :class:`Exhausted` when the budget
         is spent (a batch that would pass the evaluation limit is cut to it, so the count is
         exact; with ``finish`` neither: the caller stops between moves)."""
-        if self.deadline is not None and time.perf_counter() >= self.deadline:
-            raise Exhausted
-        if self.cancelled is not None and self.cancelled():
+        if self.expired():
             raise Exhausted
         left = self.remaining()
         if left is not None and not self.finish:
@@ -241,15 +248,18 @@ def shorten(x: np.ndarray, score: int, objective: Objective, rng: np.random.Gene
     ``climbs`` climbed in turn until one ends higher than ``score``; None if none does (or
     the loop does not repeat)."""
     table, budget = objective.loop_table(), objective.budget
-    found = _climb_best(shorter_loops(x, table, budget), score, objective, rng, sample, climbs)
+    # listing the proposals takes up to seconds: it stops at the objective's deadline, and
+    # scoring what was listed then ends the search
+    found = _climb_best(shorter_loops(x, table, budget, expired=objective.expired), score,
+                        objective, rng, sample, climbs)
     if found is not None or not windows:
         return found
     key = canonical(x, budget).tobytes()
     if key in objective.windows_tried:
         return None
     objective.windows_tried.add(key)
-    return _climb_best(shorter_windows(x, table, budget), score, objective, rng, sample,
-                       climbs)
+    return _climb_best(shorter_windows(x, table, budget, expired=objective.expired), score,
+                       objective, rng, sample, climbs)
 
 
 def _climb_best(proposals: np.ndarray, score: int, objective: Objective,
@@ -333,7 +343,8 @@ class Chain:
         higher: climbs from one start end in different basins, and the best start's are the
         likeliest to end high (measured with one chain of a PAL run's 10.4 million
         evaluations, seeds 0-15: asymmetric 41.6 against 40.6 when restarts took the next
-        source's start, outside_library 40.75 against 39.5; docs/learning.md). Every source
+        source's start, outside_library 40.75 against 39.5; docs/explanation/learning.md). Every
+        source
         is re-expressed on each model; one once started from (:attr:`taken`) is not queued
         again, but its start becomes the origin if it beats it (:meth:`_reshape`).
         ``length_cost``: the closing kicks' (:func:`pac_host.search.kicks.closing_kick`).
@@ -346,7 +357,8 @@ class Chain:
         climb. Taken as sources, a chain's own find was the best start on every later model
         and each restart climbed it again: eight chains of a PAL run on the exact noisy_rows
         table stayed on the 50s they had found (9 of 30 runs), where a fresh search of the
-        same evaluations from the library ends at 53-54 (docs/learning.md, "Restarts from
+        same evaluations from the library ends at 53-54 (docs/explanation/learning.md, "Restarts
+        from
         the library")."""
         model = objective.fingerprint()
         try:
@@ -405,7 +417,7 @@ class Chain:
         Re-expressing only the untaken sources left the early-taken ones expressed on the
         early, wrong models for the rest of a run: noisy_rows runs that ended short had an
         exact model where used, and a fresh search of it found more (30 seeds: 25/30 at 95%
-        of the best known after 25 punctuations, 27/30 with this; docs/learning.md)."""
+        of the best known after 25 punctuations, 27/30 with this; docs/explanation/learning.md)."""
         keys = [source_key(src) for src in shapes]
         every = starts_by_source(objective, list(shapes))
         self.queue = [(x, score, keys[o]) for x, score, o in every if keys[o] not in self.taken]

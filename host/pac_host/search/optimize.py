@@ -21,8 +21,8 @@ from start poses drawn with that error, which the stencil never saw.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed, wait
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -89,32 +89,59 @@ class OptimizeConfig:
         shapes.load(self.shapes)
 
 
+def _warm_up(rows: np.ndarray, budget: int, effects: tuple[Effect, ...]) -> None:
+    """Load the compiled simulator (seconds the first time in a process) before a clock
+    starts."""
+    simulate(rows, np.zeros((1, MAX_GENES, 2), dtype=np.int64), budget, effects)
+
+
 def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig, chain: int,
               seconds: float | None, evaluations: int | None) -> dict:
     """Chain ``chain`` of a search: its best turn cycle (genes), score and progress."""
-    simulate(rows, np.zeros((1, MAX_GENES, 2), dtype=np.int64), cfg.budget, effects)  # warm up
+    _warm_up(rows, cfg.budget, effects)
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, chain]))
     t0 = time.perf_counter()
     objective = Objective(rows, cfg.budget, effects, limit=evaluations,
                           deadline=None if seconds is None else t0 + seconds,
                           placement=cfg.placement)
-    restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample,
-             shapes=shapes.load(cfg.shapes).sources(), length_cost=cfg.kick_length_cost,
-             shorten_after=cfg.shorten_after, windows=cfg.shorten_windows)
+    interrupted = False
+    try:
+        restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample,
+                 shapes=shapes.load(cfg.shapes).sources(), length_cost=cfg.kick_length_cost,
+                 shorten_after=cfg.shorten_after, windows=cfg.shorten_windows)
+    except KeyboardInterrupt:  # Ctrl-C: the chain ends with the best found so far
+        interrupted = True
     # chains are ranked by score: the best's coverage score, or its pooled search score when
     # the walks are from a placement's stencil
     score = objective.best_score if cfg.placement is None else objective.best_search_score
-    return {"chain": chain, "genes": objective.best.tolist(), "score": score,
-            "evaluations": objective.evaluations,
-            "seconds": round(time.perf_counter() - t0, 3),
-            "trace": [{"evaluations": e, "seconds": round(t, 3), "fitness": round(f, 3)}
-                      for e, t, f in objective.trace]}
+    res = {"chain": chain, "genes": None if objective.best is None else objective.best.tolist(),
+           "score": score, "evaluations": objective.evaluations,
+           "seconds": round(time.perf_counter() - t0, 3),
+           "trace": [{"evaluations": e, "seconds": round(t, 3), "fitness": round(f, 3)}
+                     for e, t, f in objective.trace]}
+    return {**res, "interrupted": True} if interrupted else res
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C stopped :func:`optimize`: ``result`` is what it returns, with the best found so
+    far (None if nothing was scored yet)."""
+
+    def __init__(self, result: dict | None) -> None:
+        super().__init__()
+        self.result = result
 
 
 def optimize(rows: np.ndarray, cfg: OptimizeConfig, effects: Sequence[Effect] = (),
-             jobs: int = 1) -> dict:
+             jobs: int = 1, progress: Callable[[str, int, int], None] | None = None) -> dict:
     """Run the search; returns the best turn cycle, its figures, each chain's trace and the
-    settings (JSON-ready)."""
+    settings (JSON-ready). ``progress("chains", done, total)`` hears the start and each chain
+    finish.
+
+    A budget in seconds is the search's: its clock starts once the compiled simulator is
+    loaded (a second or two in a fresh process), and scoring the result takes a moment more.
+    Chains run one after another each get their share of the time left, so one that overran
+    its share takes it from the next. Ctrl-C (KeyboardInterrupt) raises
+    :class:`Interrupted` carrying the result so far."""
     cfg.check()
     effects = tuple(effects)
     n = cfg.chains
@@ -124,12 +151,43 @@ def optimize(rows: np.ndarray, cfg: OptimizeConfig, effects: Sequence[Effect] = 
     args = [(rows, effects, cfg, c, seconds, None if evals is None else evals[c])
             for c in range(n) if evals is None or evals[c] > 0]
     t0 = time.perf_counter()
+    shapes.load(cfg.shapes)  # bad input before any progress is reported
+    tell = progress or (lambda stage, done, total: None)
+    tell("chains", 0, len(args))
+    cut = False  # Ctrl-C cancelled chains not yet started
     if jobs <= 1 or len(args) <= 1:
-        chains = [run_chain(*a) for a in args]
+        _warm_up(rows, cfg.budget, effects)
+        start = time.perf_counter()
+        chains = []
+        for a in args:
+            if cfg.seconds is not None:  # this chain's share of the time left
+                left = cfg.seconds - (time.perf_counter() - start)
+                a = (*a[:4], max(0.0, left / (len(args) - len(chains))), a[5])
+            chains.append(run_chain(*a))
+            tell("chains", len(chains), len(args))
+            if chains[-1].get("interrupted"):
+                break
     else:
         with ProcessPoolExecutor(max_workers=min(jobs, len(args))) as ex:
-            chains = list(ex.map(run_chain, *zip(*args, strict=True)))
+            futures = [ex.submit(run_chain, *a) for a in args]
+            try:
+                for n, _ in enumerate(as_completed(futures), 1):
+                    tell("chains", n, len(args))
+            except KeyboardInterrupt:  # the workers heard it too: their chains end now
+                cut = True
+                for f in futures:
+                    f.cancel()
+                wait(futures)
+            chains = [f.result() for f in futures if not f.cancelled()]
     wall = time.perf_counter() - t0
+    interrupted = cut or any(c.get("interrupted") for c in chains)
+    chains = [c for c in chains if c["genes"] is not None]
+    if not chains:
+        if interrupted:
+            raise Interrupted(None)
+        walks = 1 if cfg.placement is None else len(cfg.placement.stencil())
+        raise InputError(f"--evaluations {cfg.evaluations} is too few to score a turn cycle "
+                         f"in a chain (each costs {walks})")
     best = max(chains, key=lambda c: c["score"])  # the first chain wins a tie
     genes = np.array(best["genes"], dtype=np.int64)
     cov = simulate(rows, genes, cfg.budget, effects)
@@ -139,7 +197,7 @@ def optimize(rows: np.ndarray, cfg: OptimizeConfig, effects: Sequence[Effect] = 
         fit = placed_fitness(rows, genes, cfg.placement, WALKS, rng, cfg.budget, effects)
         placed = {"stencil_fitness": best["trace"][-1]["fitness"] if best["trace"] else None,
                   "placed": summary(fit)}
-    return {
+    res = {
         "format": "pac-optimize/1",
         "turn_cycle": format_turn_cycle(genes),
         "genes": best["genes"],
@@ -151,6 +209,9 @@ def optimize(rows: np.ndarray, cfg: OptimizeConfig, effects: Sequence[Effect] = 
                      "method": "iterated local search with restarts"},
         "chains": chains,
     }
+    if interrupted:
+        raise Interrupted({**res, "interrupted": True})
+    return res
 
 
 def best_over_time(chains: list[dict]) -> list[tuple[float, int]]:

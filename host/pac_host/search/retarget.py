@@ -14,7 +14,8 @@ Each gait cycle of the re-expression costs :data:`LENGTH_COST` cm of that closen
 can be walked in slow gait cycles or fast ones, and a sweep repeats its loop 200 / L times in
 the budget, so of two expressions about as close the shorter loop covers more. Without the
 cost the beam matched the shape in slow, long loops (the best start on asymmetric, the
-library less its own sweeps: 29, a 72-cycle loop; with it 43, a 44-cycle loop; docs/search.md).
+library less its own sweeps: 29, a 72-cycle loop; with it 43, a 44-cycle loop;
+docs/explanation/learning.md).
 
 Only the table's moves are used (its table effects applied; sequence effects and world drift
 left out): it proposes starting points, and every proposal is scored by the coverage simulator.

@@ -5,7 +5,8 @@ A repeating sweep (a loop shorter than the budget) covers ``budget / L`` passes;
 walked in fewer gait cycles is walked more times and reaches more rows. The good sweeps a search
 stalls on differ from better ones in the length of the same pass more than in its shape (on
 the exact noisy_rows table the chains end at 49 with 37- and 38-cycle loops, the best known
-sweeps, 52 and 53, walk the same three-row pass in 35; docs/search.md). Single-gene changes
+sweeps, 52 and 53, walk the same three-row pass in 35; docs/explanation/learning.md). Single-gene
+changes
 cannot shorten a pass without moving where it ends, so every later pass drifts and the change
 scores worse; a random kick rarely lands on the pair that shortens it and closes it again.
 
@@ -53,7 +54,8 @@ from pac_host.search.neighbours import _VALUES, canonical, slots
 # Kicks in a row without progress after which a chain of the default profile and of
 # ``pac-host optimize`` tries shorter loops (:meth:`pac_host.search.local.Chain.run`).
 # Measured with optimize on the five robots' exact tables (8 chains, 3.2 million evaluations,
-# the library less each robot's sweeps, seeds 0-9; docs/search.md, "Shorter loops of a stalled
+# the library less each robot's sweeps, seeds 0-9; docs/explanation/learning.md, "Shorter loops of
+# a stalled
 # sweep"): never 49.0 / 45.0 / 43.0 / 45.3 / 40.2 (noisy_rows, shifted, asymmetric,
 # library_on_changed, outside_library), after 5 kicks 49.9 / 45.3 / 43.0 / 46.2 / 41.8, higher
 # on 25 of the 50 runs and lower on 1; on noisy_rows after 2 kicks 49.5, after 10 49.8, after
@@ -99,12 +101,14 @@ def _pairs_summing_to(total: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def shorter_loops(x: np.ndarray, repeated: np.ndarray, budget: int, top: int = TOP,
-                  by: int = SHORTER_BY, weight: float = WEIGHT) -> np.ndarray:
+                  by: int = SHORTER_BY, weight: float = WEIGHT,
+                  expired: Callable[[], bool] | None = None) -> np.ndarray:
     """Turn cycles (N, 9, 2) that walk loop ``x`` (9, 2) 1..``by`` gait cycles shorter with two
     genes re-set, for each pair of genes worth changing the ``top`` whose net move comes
     closest to ``x``'s, closest first within a pair. ``repeated``: the model's moves repeated
     0..63 times (:func:`pac_host.search.kicks.loop_table`). A loop the budget does not repeat
-    has no pass to keep: none."""
+    has no pass to keep: none. ``expired``: checked before each first gene; once it says so,
+    the proposals listed so far (a search's deadline)."""
     x = canonical(x, budget)
     length = int(x[:, 1].sum())
     if length >= budget or length == 0:
@@ -114,6 +118,8 @@ def shorter_loops(x: np.ndarray, repeated: np.ndarray, budget: int, top: int = T
     values = repeated[_VALUES[:, 0], _VALUES[:, 1]]  # (V, 2)
     out = []
     for i, a in enumerate(where):
+        if expired is not None and expired():
+            break
         before = loop_moves(x[:a], repeated)
         for b in where[i + 1:]:
             middle, after = loop_moves(x[a + 1:b], repeated), loop_moves(x[b + 1:], repeated)
@@ -227,12 +233,14 @@ def _points(moves: np.ndarray, weight: float) -> np.ndarray:
 
 def shorter_windows(x: np.ndarray, repeated: np.ndarray, budget: int, by: int = SHORTER_BY,
                     tolerance: float = TOLERANCE, weight: float = WEIGHT,
-                    matches: Callable | None = None) -> np.ndarray:
+                    matches: Callable | None = None,
+                    expired: Callable[[], bool] | None = None) -> np.ndarray:
     """Turn cycles (N, 9, 2) that walk loop ``x`` (9, 2) 1..``by`` gait cycles shorter with
     :data:`WINDOW` consecutive genes re-set and the window's net move within ``tolerance`` of
     its own (:func:`shorter_window` for each window), closest first within a window.
-    ``repeated``: as for :func:`shorter_loops`; ``matches``: as for :func:`shorter_window`. A
-    loop the budget does not repeat has no pass to keep: none.
+    ``repeated``, ``expired``: as for :func:`shorter_loops` (checked before each window);
+    ``matches``: as for :func:`shorter_window`. A loop the budget does not repeat has no pass
+    to keep: none.
 
     >>> from pac_host.coverage import parse_turn_cycle
     >>> from pac_host.model import shifted_table
@@ -250,8 +258,12 @@ def shorter_windows(x: np.ndarray, repeated: np.ndarray, budget: int, by: int = 
     starts = range(len(x) - WINDOW + 1)
     pairs = _pairs_for(repeated,
                        max(2, *(int(x[s:s + WINDOW, 1].sum()) for s in starts)) - 1, weight)
-    return np.concatenate([shorter_window(x, s, repeated, by, tolerance, weight, pairs,
-                                          matches) for s in starts])
+    out = [empty]
+    for s in starts:
+        if expired is not None and expired():
+            break
+        out.append(shorter_window(x, s, repeated, by, tolerance, weight, pairs, matches))
+    return np.concatenate(out)
 
 
 def shorter_window(x: np.ndarray, start: int, repeated: np.ndarray, by: int = SHORTER_BY,

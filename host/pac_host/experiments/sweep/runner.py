@@ -26,6 +26,7 @@ from pac_host.experiments.sweep.results import cell_rows, finish_rows, write_tab
 from pac_host.experiments.sweep.spec import Cell
 from pac_host.files import write_atomic
 
+CONFIG = "sweep.json"  # the sweep a run started with (cli/sweep.py's --resume checks it)
 # progress(event, cell, cells done, cells in all, seconds): event "skipped" or "finished"
 Progress = Callable[[str, Cell, int, int, float], None]
 
@@ -49,13 +50,16 @@ def cell_dir(out_dir: Path, cell: Cell) -> Path:
 
 
 def run_sweep(cells: list[Cell], out_dir: Path, engine: Executor, resume: bool = False,
-              progress: Progress | None = None) -> dict:
-    """Run every cell not yet finished in ``out_dir``; returns the results document."""
+              progress: Progress | None = None, config: dict | None = None) -> dict:
+    """Run every cell not yet finished in ``out_dir``; returns the results document.
+    ``config``: written to OUT/sweep.json when a sweep starts (what a resume checks)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     started = (out_dir / "cells").exists() and any((out_dir / "cells").iterdir())
     if started and not resume:
         raise InputError(f"{out_dir} holds a sweep: use --resume to continue it, or another "
                          "--out")
+    if config is not None and not resume:
+        write_atomic(out_dir / CONFIG, json.dumps(config, indent=1) + "\n")
     keys = setting_keys(cells)
     by_id = {c.id: c for c in cells}
     rows: list[dict] = []
