@@ -4,12 +4,12 @@ The command is the Makefile's own (the ``pac-host evolve`` line of its ``demo`` 
 into a temporary directory), so this measures what a newcomer's ``make demo`` does: PAL over
 a pseudo-terminal against the emulated shifted robot. Figures: the operational turn cycle's
 coverage on the robot at each punctuation, the predicted against the observed fitness of each
-test, and the best known on the shifted robot (bench/best_known.json).
+test, and the best known on the shifted robot (host/pac_host/model/best_known.json).
 
 Targets: the run ends within 10% of the best known; the predictions converge, the model
 predicting every test of the last three punctuations within one block (the first punctuation,
-before any correction, is far off). Usage: ``python bench/run.py --only demo`` (about two
-minutes).
+before any correction, is far off). Usage: ``python bench/run.py --only demo`` (about a
+minute on an idle core).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-import known_best
+from pac_host.model.best_known import fitness as best_known_fitness
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -61,7 +61,7 @@ def figures(out: Path, best_known: int) -> dict:
 
 
 def run(quick: bool = False) -> dict:
-    best = known_best.fitness("shifted")
+    best = best_known_fitness("shifted")
     args = demo_evolve_args()
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "demo-evolve"

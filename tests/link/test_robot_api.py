@@ -69,8 +69,15 @@ def test_linked_robot_scores_the_observed_path(sim_robot, tmp_path):
     placer = TrackerPlacer(host, port)
     log = []
     linked = LinkedRobot(robot, observer, placer, 60, log.append, seed=3)
+    heard = []
+    linked.progress, linked.progress_every = (lambda *a: heard.append(a)), 25
     tests = np.stack([parse_turn_cycle("12:20,3:9"), parse_turn_cycle("27:5,0:0")])
     results = linked.run_tests(tests)
+    # progress: each test as it starts and ends, the gait cycles walked every 25
+    walked = [("gait cycles", n, 60) for n in (0, 25, 50)]
+    assert heard == [("tests", 0, 2, "g0-t0"), *[w + ("g0-t0",) for w in walked],
+                     ("tests", 1, 2, "g0-t0"), ("tests", 1, 2, "g0-t1"),
+                     *[w + ("g0-t1",) for w in walked], ("tests", 2, 2, "g0-t1")]
     # noise-free tracker: the path and the figures are exactly the true robot's
     want = simulate(shifted_table().rows, tests, 60, (), START_POSE, keep_paths=True)
     for k, r in enumerate(results):

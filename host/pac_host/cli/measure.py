@@ -10,6 +10,7 @@ import click
 from pac_host import limits
 from pac_host.cli.link_options import ask, confirm, emulator_options, link_options
 from pac_host.cli.options import Bounded
+from pac_host.cli.progress import Progress, quiet_option
 from pac_host.model.table import COMPONENTS, resolve_table, save_table
 from pac_host.robot.connect import connect
 from pac_host.robot.linked import AppendLog
@@ -49,15 +50,17 @@ def _pose(text: str) -> tuple[float, float, float]:
               metavar="measured|shifted|FILE", help="The current table to compare with.")
 @click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="The measured pac-gait-table/1 file to write.")
+@quiet_option
 def measure_cmd(ids, repeats, cycles, start, seed, table_spec, out_path, port, observer_spec,
-                placer, **sim) -> None:
+                placer, quiet, **sim) -> None:
     """Walk each gait cycle id REPEATS times from a known pose and fit its (F, T, dH).
 
     Writes OUT (pac-gait-table/1: the current table with the measured ids replaced),
     OUT.measure.json (per id: mean, standard deviation, standard error, n, and the difference
     from the current table), OUT.png (the differences with 3-standard-error whiskers),
     OUT.observations.jsonl (every observation) and OUT.runs.jsonl (the observed runs). Prints
-    each id's measurement and its difference from the current table.
+    each id's measurement and its difference from the current table. Progress goes to stderr
+    (a line per id through a pipe); --quiet silences it.
     """
     cfg = MeasureConfig(parse_ids(ids), repeats, cycles, _pose(start), seed)
     cfg.check()
@@ -71,8 +74,12 @@ def measure_cmd(ids, repeats, cycles, start, seed, table_spec, out_path, port, o
     with connect(port, observer_spec, emu, ask, confirm, "pose", placer) as conn:
         click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
         recovery = Recovery()
-        fits = measure(conn, cfg, AppendLog(side[".observations.jsonl"]),
-                       AppendLog(side[".runs.jsonl"]), recovery=recovery)
+        with Progress("measure", quiet, {"gait ids": "ids"}) as bar:
+            bar("gait ids", 0, len(cfg.ids))
+            fits = measure(conn, cfg, AppendLog(side[".observations.jsonl"]),
+                           AppendLog(side[".runs.jsonl"]),
+                           lambda gait, done, total: bar("gait ids", done, total, f"id {gait}"),
+                           recovery=recovery)
     table = measured_table(current, fits, out_path.stem)
     save_table(table, out_path)
     diffs = differences(current, fits)

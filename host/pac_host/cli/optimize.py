@@ -19,12 +19,13 @@ from pac_host.cli.options import (
     shorten_after_option,
     table_option,
 )
+from pac_host.cli.progress import Progress, quiet_option
 from pac_host.coverage import DEFAULT_BUDGET
 from pac_host.coverage.placement import parse_placement
 from pac_host.errors import InputError
 from pac_host.files import write_atomic
 from pac_host.search.local import SAMPLE
-from pac_host.search.optimize import OptimizeConfig, best_over_time, optimize
+from pac_host.search.optimize import Interrupted, OptimizeConfig, best_over_time, optimize
 from pac_host.search.shorten import SHORTEN_AFTER
 
 
@@ -33,7 +34,10 @@ from pac_host.search.shorten import SHORTEN_AFTER
 @effect_option()
 @click.option("--budget", default=DEFAULT_BUDGET, show_default=True, type=Bounded(limits.BUDGET),
               help="Gait cycles per walk.")
-@click.option("--seconds", type=float, help="Stop after this many seconds (wall time).")
+@click.option("--seconds", type=float,
+              help="Stop the search after this many seconds (wall time; its clock starts once "
+                   "the compiled simulator is loaded). Ctrl-C stops it too, printing and "
+                   "writing the best found so far.")
 @click.option("--evaluations", type=Bounded(limits.EVALUATIONS),
               help="Stop after this many coverage evaluations (reproducible).")
 @click.option("--chains", default=1, show_default=True, type=Bounded(limits.CHAINS),
@@ -54,9 +58,10 @@ from pac_host.search.shorten import SHORTEN_AFTER
               help="Write the result, each chain's progress and the settings here.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
               help="Draw the best fitness against seconds to this PNG.")
+@quiet_option
 def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains, sample,
                  kick_length_cost, shorten_after, placement, shapes, seed, jobs, json_out,
-                 plot) -> None:
+                 plot, quiet) -> None:
     """Find the best turn cycle on a model: iterated local search with restarts.
 
     Prints the best turn cycle, its coverage figures (as `simulate` gives them) and how the
@@ -65,6 +70,7 @@ def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains,
     Example: pac-host optimize --table shifted --seconds 60 --seed 3 --json best.json
 
     With --placement-error every turn cycle costs seven walks (the stencil's start poses).
+    Progress goes to stderr (a line per finished chain through a pipe); --quiet silences it.
     """
     if seconds is None and evaluations is None:
         seconds = 60.0
@@ -76,7 +82,14 @@ def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains,
     table = load_with_effects(table_spec, effect_specs)
     if json_out is not None and json_out.is_dir():
         raise InputError(f"--json {json_out} is a directory")
-    res = optimize(table.rows, cfg, table.effects, jobs)
+    interrupted = False
+    try:
+        with Progress("optimize", quiet) as progress:
+            res = optimize(table.rows, cfg, table.effects, jobs, progress)
+    except Interrupted as e:  # Ctrl-C: the best found so far is printed and written
+        if e.result is None:
+            raise
+        res, interrupted = e.result, True
     res["table"] = {"name": table.name, "effects": [e.to_json() for e in table.effects]}
     growth = best_over_time(res["chains"])
     click.echo(f"best turn cycle on {table.name}: {res['turn_cycle']}")
@@ -93,6 +106,10 @@ def optimize_cmd(table_spec, effect_specs, budget, seconds, evaluations, chains,
         from pac_host.plots import optimize_progress
 
         optimize_progress([growth], plot, f"optimize on {table.name}")
+    if interrupted:
+        click.echo("pac-host: interrupted: the best found so far is above"
+                   + (" and written" if json_out or plot else ""), err=True)
+        raise click.exceptions.Exit(130)
 
 
 def register(main: click.Group) -> None:

@@ -14,23 +14,29 @@ and resynchronisations) is redone from its start, at most
 operator is asked again, or the emulator is placed), and the test runs again. Every retry,
 resync, dropped report and redone test is logged as it happens and counted in
 :attr:`LinkedRobot.recovery`.
+
+A punctuation's tests take minutes on a real robot: :attr:`LinkedRobot.progress`, if set, hears
+``progress("tests", done, total, run_id)`` as each test starts and ends, and
+``progress("gait cycles", done, budget, run_id)`` every :attr:`LinkedRobot.progress_every`
+gait cycles walked.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from pac_host.coverage import START_POSE, coverage_of_poses, expand
 from pac_host.errors import InputError, PacError
-from pac_host.learning.pal import TestResult
+from pac_host.learning.testing import TestResult
 from pac_host.robot.api import StampRobot
 from pac_host.robot.observers import Observation, Observer, ObserverError
 from pac_host.robot.placement import Placer
 from pac_host.robot.recovery import REDOS, Recovery, with_redos
+from pac_protocol.messages import Cycle
 
 
 class AppendLog:
@@ -64,6 +70,10 @@ def observed_run(run_id: str, start: Sequence[float], gaits: Sequence[int],
             "cycles_since_power_on": int(n0)}
 
 
+# progress(stage, done, total, detail): see the module docstring
+Progress = Callable[[str, int, int, str], None]
+
+
 class LinkedRobot:
     """Runs PAL's tests on a robot behind a :class:`StampRobot`, with a placer and an observer.
 
@@ -87,11 +97,27 @@ class LinkedRobot:
         self.generation = 0
         self.runs: list[dict] = []
         self.current_run = ""  # the run in progress (named in errors)
+        self.progress: Progress | None = None
+        self.progress_every = 10  # gait cycles between progress reports while walking
 
     def run_tests(self, tests: np.ndarray) -> list[TestResult]:
         self.runs = []
-        return [self.run_one(f"g{self.generation}-t{i}", np.asarray(t), (self.generation, i))
-                for i, t in enumerate(tests)]
+        out = []
+        for i, t in enumerate(tests):
+            run_id = f"g{self.generation}-t{i}"
+            self._report("tests", i, len(tests), run_id)
+            out.append(self.run_one(run_id, np.asarray(t), (self.generation, i)))
+            self._report("tests", i + 1, len(tests), run_id)
+        return out
+
+    def _report(self, stage: str, done: int, total: int, run_id: str) -> None:
+        if self.progress is not None:
+            self.progress(stage, done, total, run_id)
+
+    def _on_cycle(self, run_id: str, cycle: Cycle) -> None:
+        self.observer.on_cycle(cycle.power_on)
+        if cycle.done % self.progress_every == 0:
+            self._report("gait cycles", cycle.done, self.budget, run_id)
 
     def take_recovery(self) -> Recovery:
         """The recovery since the last call (one punctuation's), and start counting afresh."""
@@ -127,7 +153,8 @@ class LinkedRobot:
         self.robot.load(stored)
         n0 = self.robot.power_on()
         self.observer.begin(run_id, n0, self.log)
-        report = self.robot.run(self.budget, lambda c: self.observer.on_cycle(c.power_on), n0)
+        self._report("gait cycles", 0, self.budget, run_id)
+        report = self.robot.run(self.budget, lambda c: self._on_cycle(run_id, c), n0)
         obs = self.observer.finish(report.done)
         self.log({"type": "done", "run_id": run_id, "cycles": report.done,
                   "completed": report.completed, "lost_reports": report.lost_reports,
