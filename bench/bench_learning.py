@@ -24,13 +24,16 @@ Methods ``pooled`` and ``walking_pooled`` are ``default`` and ``walking`` with e
 scored on the model and three draws from its posterior (``--search-models 4``), the model's
 own best tested beside the pooled best. Method ``closest_kicks`` is the default with closing
 kicks by closeness alone (``--kick-length-cost 0``, the default before it preferred shorter
-loops; docs/search.md). Method ``own_restarts`` is the default with each chain's find on the
+loops; docs/explanation/learning.md). Method ``own_restarts`` is the default with each chain's find
+on the
 model before a source its restarts climb again (the default before ``library_restarts``;
-docs/learning.md, "Restarts from the library"). Method ``cut_moves`` is the default with each
+docs/explanation/learning.md, "Restarts from the library"). Method ``cut_moves`` is the default
+with each
 chain cut where its budget runs out, mid-move (the default before ``finish_moves``;
-docs/learning.md, "Moves finished across punctuations"). Method ``fixed_effects`` is the
+docs/explanation/learning.md, "Moves finished across punctuations"). Method ``fixed_effects`` is the
 default with the sequence and world effects' parameters as the structure selection estimated
-them (the default before ``refine_effects``; docs/learning.md, "Effects refitted with the
+them (the default before ``refine_effects``; docs/explanation/learning.md, "Effects refitted with
+the
 rows").
 ``--search-evaluations N`` gives every method N search evaluations a punctuation (what more
 host time buys). ``--records bench/records`` starts each robot and method from the runs
@@ -53,7 +56,7 @@ import numpy as np
 
 from pac_host.experiments.experiment import ExperimentConfig, run_experiment
 from pac_host.learning import profiles, test_selection
-from pac_host.learning.pal import PAPER, PALConfig
+from pac_host.learning.config import PAPER, PALConfig, recombination_inert
 from pac_host.model import measured_table, robots, shifted_table
 from pac_host.search import shapes
 
@@ -103,7 +106,8 @@ METHODS = {
     # them (the default before refine_effects)
     "fixed_effects": replace(profiles.apply("default", PALConfig()), refine_effects=False),
 }
-# bench/best_known.json (checked by the tests); the experiments raise these to anything
+# host/pac_host/model/best_known.json (checked by the tests); the experiments raise these to
+# anything
 # their own optimize chains or runs find
 BEST_KNOWN = known_best.fitnesses()
 
@@ -150,7 +154,10 @@ def measure(robot_names, methods, seeds: int, out_root: Path, generations: int =
                 log.write_text("".join(json.dumps(r) + "\n"
                                        for r in learning_records.read_log(recorded)))
             cfg = ExperimentConfig(
-                seeds=seeds, generations=generations, methods=tuple(recombination),
+                seeds=seeds, generations=generations,
+                # full where a model GA runs: elsewhere it would be partial's run again
+                methods=tuple(m for m in recombination
+                              if not (m == "full" and recombination_inert(pcfg))),
                 initial_generations=1000, optimum_runs=optimum_runs, optimum_search="optimize",
                 optimum_evaluations=optimum_evaluations, best_known=BEST_KNOWN.get(rname),
                 pal=pcfg)
@@ -223,7 +230,7 @@ if __name__ == "__main__":
                     help="every method's tests but the paper's (default: the method's)")
     ap.add_argument("--records", type=Path, default=None,
                     help="start each robot and method from its recorded runs in this folder "
-                         "(bench/records: docs/learning.md's), running only the seeds missing")
+                         "(bench/records: docs/results.md's), running only the seeds missing")
     ap.add_argument("--out", default="out/bench-learning")
     a = ap.parse_args()
     res = measure(a.robots.split(","), a.methods.split(","), a.seeds, Path(a.out),

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import json
 import time
-from pathlib import Path
 
+import known_best
 import numpy as np
 
 from pac_host.coverage import parse_turn_cycle
@@ -29,15 +29,12 @@ from pac_host.model import robots, shifted_table
 from pac_host.search import shorten
 from pac_host.search.kicks import loop_table
 
-HERE = Path(__file__).resolve().parent
 REPEATS = 2
 TARGET = 3.0
 
 
 def _loops() -> list[np.ndarray]:
-    known = json.loads((HERE / "best_known.json").read_text())
-    return [parse_turn_cycle(rec["turn_cycle"]) for rec in known.values()
-            if isinstance(rec, dict)]
+    return [parse_turn_cycle(rec["turn_cycle"]) for rec in known_best.entries().values()]
 
 
 def _list_all(repeated: np.ndarray, loops: list[np.ndarray], matches) -> tuple[float, list]:

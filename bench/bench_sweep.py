@@ -24,7 +24,9 @@ from pac_host.model import shifted_table
 
 def _spec(quick: bool) -> dict:
     return {
-        "settings": {"seeds": 2 if quick else 4, "generations": 80 if quick else 200,
+        # the paper's profile: its model GA is where full and partial recombination differ
+        "settings": {"profile": "paper", "seeds": 2 if quick else 4,
+                     "generations": 80 if quick else 200,
                      "initial_generations": 50 if quick else 200, "optimum_runs": 2,
                      "optimum_generations": 100 if quick else 300, "budget": 200},
         "grid": {"methods": ["full", "partial"], "model_fitness": ["coverage", "steps"]},

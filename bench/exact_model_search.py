@@ -13,7 +13,8 @@ sweeps found on that robot (as the bench gives it), two measures of what a searc
   find is not its own parent), scored, and the best ``--climb`` of them climbed to a local
   optimum: whether the runs' finds combine into a better sweep.
 
-Example (docs/learning.md, "noisy_rows misses the 95% target against its new best known"):
+Example (docs/explanation/learning.md, "noisy_rows misses the 95% target against its new best
+known"):
 ``python bench/exact_model_search.py --robot noisy_rows --log
 out/bench-learning/noisy_rows/default/log.jsonl --below 51``
 """

@@ -1,4 +1,4 @@
-"""The recorded PAL runs behind docs/learning.md's 30-seed figures, and the figures from them.
+"""The recorded PAL runs behind docs/results.md's 30-seed figures, and the figures from them.
 
 A 30-seed run of one robot takes one to two hours on two cores, so the punctuation logs of the
 runs the docs quote are kept in the repository (``bench/records/learning/ROBOT-METHOD.jsonl.gz``,
@@ -71,7 +71,7 @@ def complete_runs(recs: list[dict], method: str = "partial",
 
 
 def figures(runs: dict[int, list[dict]], best_known: int) -> dict:
-    """What docs/learning.md quotes of a robot's runs: the issue's targets (90% of the best
+    """What docs/results.md quotes of a robot's runs: the issue's targets (90% of the best
     known reached, by how many punctuations; 95% at the end), through the experiment's own
     :func:`~pac_host.experiments.experiment.robot_time_report`, and by seed the finals, the
     punctuations
@@ -173,7 +173,7 @@ BEGIN, END = "<!-- learning_records table -->", "<!-- end of learning_records ta
 
 
 def markdown(root: Path = RECORDS) -> str:
-    """The records' figures as the table docs/learning.md and the README carry (between
+    """The records' figures as the table docs/results.md carries (between
     :data:`BEGIN` and :data:`END`; tests/host/test_learning_records.py checks they match)."""
     head = ("| robot (best known) | seeds | 90% of the best known: seeds, median punctuations "
             "(robot hours; range) | 95% at the end | final mean (range) | later punctuations "
@@ -202,7 +202,7 @@ CMP_END = "<!-- end of learning_records comparison -->"
 def comparison_markdown(root: Path = RECORDS) -> str:
     """The paper's question on the records that ran both recombinations: each one's figures,
     the paired tests of partial against full by robot, and pooled over every robot's seeds
-    (the table docs/learning.md and the README carry between :data:`CMP_BEGIN` and
+    (the table docs/results.md carries between :data:`CMP_BEGIN` and
     :data:`CMP_END`)."""
     head = ("| robot (best known), method, seeds | recombination | finals (mean) | 90% reached, "
             "median punctuations (robot hours) | 95% at the end | final model error (mean F, "
@@ -267,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="the commit the runs were made with (default: this checkout's)")
     sv.add_argument("--command", required=True, help="the command that made the log")
     sv.add_argument("--best-known", type=int, default=None,
-                    help="default: bench/best_known.json's")
+                    help="default: host/pac_host/model/best_known.json's")
     sv.add_argument("--recombinations", default="partial",
                     help="the log's recombinations to record, comma-separated (full,partial "
                          "for a method with the model GA: the paper's question)")

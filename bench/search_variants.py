@@ -13,18 +13,21 @@ robot and variant the final fitness of each seed, their mean and, against the fi
 how many seeds it ended higher and lower, with the paired Wilcoxon test; and over every robot
 pooled.
 
-Example (docs/search.md, "Kicks that prefer shorter loops"; one chain as a PAL run's chains
+Example (docs/explanation/learning.md, "Kicks that prefer shorter loops"; one chain as a PAL run's
+chains
 are, about 20 s a run on one core):
 ``python bench/search_variants.py --robots noisy_rows,asymmetric,outside_library --chains 1
 --evaluations 3000000 --seeds 100-115 --kick-length-costs 0,1``
 
-Example (docs/search.md, "Shorter loops of a stalled sweep"; eight chains and a punctuation's
+Example (docs/explanation/learning.md, "Shorter loops of a stalled sweep"; eight chains and a
+punctuation's
 evaluations, as the default profile searches each corrected model):
 ``python bench/search_variants.py --robots
 shifted,noisy_rows,asymmetric,library_on_changed,outside_library --chains 8 --evaluations 3200000
 --seeds 0-9 --kick-length-costs 1 --shorten-after 0,5``
 
-Example (docs/search.md, "Shorter windows"): the same with ``--shorten-after 5 --windows 0,1``.
+Example (docs/explanation/learning.md, "Shorter windows"): the same with ``--shorten-after 5
+--windows 0,1``.
 """
 
 from __future__ import annotations

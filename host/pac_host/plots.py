@@ -18,29 +18,61 @@ METHOD_TITLES = {
     "oracle": "control: the CGA on the actual robot's own table",
 }
 METHOD_COLOURS = {"full": "tab:red", "partial": "tab:blue", "oracle": "tab:gray"}
+CGA_AXIS = "CGA generation"
+PUNCTUATION_AXIS = "punctuations (3 robot tests each)"
+
+
+def progress_axis(search: str, generations) -> tuple[list, str]:
+    """The x values and label of a curve over a run's punctuations, for what ran between
+    them (``search``, a PAL config's): the CGA's generations where the CGA ran, else the
+    punctuations counted from 1 (an anytime search counts no generations).
+
+    >>> progress_axis("cga", [0, 40, 80])
+    ([0, 40, 80], 'CGA generation')
+    >>> progress_axis("ils", [0, 40, 80])
+    ([1, 2, 3], 'punctuations (3 robot tests each)')
+    """
+    if search == "cga":
+        return list(generations), CGA_AXIS
+    return list(range(1, len(generations) + 1)), PUNCTUATION_AXIS
+
+
+def method_title(method: str, pal_config: dict) -> str:
+    """A method's name in a figure, for what ran: with no model GA (recombination inert) the
+    PAL method is the model fitted to every observed step, not partial recombination."""
+    from pac_host.learning.config import recombination_inert
+
+    if method == "partial" and recombination_inert(pal_config):
+        return "PAL, the model fitted to every observed step (no model GA)"
+    return METHOD_TITLES.get(method, method)
 
 
 def coverage_per_seed(summary: dict, method: str, path: Path) -> Path:
-    """Operational coverage on the actual robot against CGA generation, one line per seed."""
+    """Operational coverage on the actual robot against CGA generation (or punctuation, where
+    no CGA ran between them), one line per seed."""
     runs = [r for r in summary["runs"] if r["method"] == method]
     fig, ax = plt.subplots(figsize=(7, 4.2), dpi=110)
     for r in runs:
-        ax.step(r["generations"], r["coverage"], where="post", lw=1.2, alpha=0.8,
+        x, _ = progress_axis(summary["pal_config"]["search"], r["generations"])
+        ax.step(x, r["coverage"], where="post", lw=1.2, alpha=0.8,
                 label=f"seed {r['seed']}" if len(runs) <= 10 else None)
-    _decorate(ax, summary, METHOD_TITLES.get(method, method) + f" ({len(runs)} seeds)")
+    _decorate(ax, summary, method_title(method, summary["pal_config"])
+              + f" ({len(runs)} seeds)")
     if len(runs) <= 10:
         ax.legend(fontsize=7, ncol=2, loc="lower right")
     return _save(fig, path)
 
 
 def mean_coverage(summary: dict, path: Path) -> Path:
-    """The methods' mean operational coverage against CGA generation (paper's Figure 8)."""
+    """The methods' mean operational coverage against CGA generation (or punctuation)
+    (paper's Figure 8)."""
     fig, ax = plt.subplots(figsize=(7, 4.2), dpi=110)
     comp = summary["comparison"]["methods"]
     for method, m in comp.items():
         gens = next(r["generations"] for r in summary["runs"] if r["method"] == method)
+        x, _ = progress_axis(summary["pal_config"]["search"], gens)
         name = "oracle (perfect model)" if method == "oracle" else method
-        ax.plot(gens, m["mean_coverage"], lw=2, color=METHOD_COLOURS.get(method),
+        ax.plot(x, m["mean_coverage"], lw=2, color=METHOD_COLOURS.get(method),
                 label=f"{name}: {m['reached_optimum']}/{m['seeds']} reached the optimum")
     _decorate(ax, summary, "Mean operational coverage over seeds")
     ax.legend(fontsize=8, loc="lower right")
@@ -48,8 +80,9 @@ def mean_coverage(summary: dict, path: Path) -> Path:
 
 
 def _decorate(ax, summary: dict, title: str) -> None:
-    ax.axhline(summary["optimum"], color="k", ls="--", lw=1, label="optimum on the actual robot")
-    ax.set_xlabel("CGA generation")
+    ax.axhline(summary["optimum"], color="k", ls="--", lw=1,
+               label="the experiment's optimum on the actual robot")
+    ax.set_xlabel(progress_axis(summary["pal_config"]["search"], ())[1])
     ax.set_ylabel("coverage fitness on the actual robot (3R + c)")
     ax.set_title(title)
     ax.set_ylim(bottom=0, top=summary["optimum"] + 2)
@@ -146,9 +179,13 @@ def coverage_path(poses, blocks, path: Path, title: str = "Coverage path",
     return _save(fig, path)
 
 
-def learning_progress(records: list[dict], path: Path, title: str = "Learning progress") -> Path:
-    """Operational coverage on the robot and the model's error, per punctuation."""
-    gens = [r["generation"] for r in records]
+def learning_progress(records: list[dict], path: Path, title: str = "Learning progress",
+                      search: str = "cga") -> Path:
+    """Operational coverage on the robot and the model's error, per punctuation: against the
+    CGA's generations where ``search`` (what ran between punctuations) is the CGA."""
+    from pac_host.learning.model_ga import ERROR_UNITS
+
+    gens, x_label = progress_axis(search, [r["generation"] for r in records])
     fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
     ax.step(gens, [r["operational_fitness"] for r in records], where="post", lw=2,
             label="operational coverage on the robot")
@@ -156,14 +193,13 @@ def learning_progress(records: list[dict], path: Path, title: str = "Learning pr
             label="tested best turn cycle on the robot")
     ax.plot(gens, [r["predicted"][0]["fitness"] for r in records], "x", ms=5,
             label="same, predicted by the model")
-    ax.set_xlabel("CGA generation")
+    ax.set_xlabel(x_label)
     ax.set_ylabel("coverage fitness (3R + c)")
     ax2 = ax.twinx()
     ax2.plot(gens, [r["model_error_before"] for r in records], color="tab:gray", lw=1, ls=":",
              label="model error on the new tests")
-    steps = bool(records) and records[-1].get("model_fitness") == "steps"
-    ax2.set_ylabel("model error (RMS of the observed steps, cm)" if steps
-                   else "model error (sum of 6 differences)")
+    fitness = records[-1].get("model_fitness", "coverage") if records else "coverage"
+    ax2.set_ylabel(f"model error, {ERROR_UNITS[fitness]}", fontsize=7)
     lines = ax.get_legend_handles_labels()
     lines2 = ax2.get_legend_handles_labels()
     ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=7, loc="upper left")

@@ -134,7 +134,7 @@ def test_choose_tests_gives_the_teaching_variants_only_with_rows(monkeypatch):
     monkeypatch.setattr(test_selection, "choose", spy)
     for tests in ("informative", "rows", "paper"):
         pal.choose_tests(state, np.random.default_rng(9), pal.replace(cfg, tests=tests))
-    # the default (evolve's and experiment's, measured best in docs/learning.md) is rows
+    # the default (evolve's and experiment's, measured best in docs/explanation/learning.md) is rows
     pal.choose_tests(state, np.random.default_rng(9),
                      pal.PALConfig(cga_population=8, model_population=6))
     # the paper's tests choose nothing
@@ -254,10 +254,13 @@ def test_experiment_on_a_robot_file_reports_robot_time(tmp_path):
     assert {e["name"] for e in s["actual"]["effects"]} == {"transition", "yaw_bias"}
     assert s["pal_config"]["correction"] == "fit"
     rt = s["robot_time"]
-    assert rt["best_known"] == 40 and set(rt["methods"]) == {"partial", "oracle"}
+    # the file is the built-in robot: its record (50) beats the lower --best-known given
+    assert rt["best_known"] == 50 and set(rt["methods"]) == {"partial", "oracle"}
+    assert s["best_known"]["used"] == "built-in" and s["best_known"]["given"] == 40
+    assert s["best_known"]["built_in"]["robot"] == "library_on_changed"
     for r in s["runs"]:
         assert len(r["robot_hours"]) == 2 and 0 < r["robot_hours"][0] < r["robot_hours"][1]
-        assert r["punctuations_to_target"] is None  # 36 is out of reach in 40 generations
+        assert r["punctuations_to_target"] is None  # 45 is out of reach in 40 generations
     assert (out / "robot_time.png").read_bytes()[:4] == b"\x89PNG"
     assert "punctuations" in res.output and "robot hours" in res.output
     bad = CliRunner().invoke(main, ["experiment", "--best-known", "0", "--out", str(out)])

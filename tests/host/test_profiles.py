@@ -48,6 +48,11 @@ def test_paper_profile_reproduces_the_results_from_before_bit_for_bit(tmp_path):
         for r in summary["runs"]}
     assert got == BEFORE
     assert json.loads((tmp_path / "optimum.json").read_text())["search"]["method"] == "CGA"
+    # the paper's question by default: full against partial (their runs differ), the oracle
+    assert summary["config"]["methods"] == ["full", "partial", "oracle"]
+    assert 0 <= summary["comparison"]["tests"]["reached_optimum_fisher_exact_p"] <= 1
+    # no record at budget 150: robot time counts against the experiment's own optimum
+    assert summary["best_known"]["used"] == "optimum" and summary["best_known"]["fitness"] == 16
 
 
 def test_profiles_are_pal_overrides():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from pac_host.coverage import START_POSE, coverage_of_poses
 from pac_host.model import load_table, rollout, shifted_table
@@ -56,20 +57,82 @@ def test_evolve_writes_a_complete_log_and_the_model_error_falls(baseline):
         assert (baseline / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # a robot is placed by hand: the default profile searches for it (pac_host.coverage.placement)
     assert json.loads((baseline / "config.json").read_text())["placement"] == "0.5,1"
+    # the host's seconds named for what ran: the fit with the model GA on top
+    # (--model-generations) and the anytime search at the punctuation, a ranking between
+    assert all(set(r["timing"]) == {"robot_s", "ranking_s", "model_fit_and_ga_and_search_s"}
+               for r in log)
     assert all(r["search"]["evaluations"] % 7 == 0 for r in log if "search" in r)
 
 
-def test_evolve_placement_default_follows_the_profile(tmp_path):
+def test_evolve_placement_default_follows_the_profile(tmp_path, monkeypatch):
     """The paper's CGA scores from the exact start: with --profile paper the default is none,
-    and an explicit placement error is refused (exit 2)."""
+    and an explicit placement error is refused (exit 2). Its model GA takes --method; the log,
+    the printed model error and the figures name what ran."""
+    from pac_host import plots
+
+    seen = {}
+    real = plots._save
+
+    def save(fig, path):
+        seen[path.name] = (fig.axes[0].get_xlabel(), fig.axes[0].get_title())
+        return real(fig, path)
+
+    monkeypatch.setattr(plots, "_save", save)
     out = tmp_path / "paper"
     args = [a for a in SMALL if a not in ("--search-evaluations", "20000")]
-    res = invoke("evolve", "--out", str(out), "--generations", "0", "--profile", "paper", *args)
+    res = invoke("evolve", "--out", str(out), "--generations", "0", "--profile", "paper",
+                 "--method", "full", *args)
     assert res.exit_code == 0, res.output
-    assert json.loads((out / "config.json").read_text())["placement"] == "none"
+    config = json.loads((out / "config.json").read_text())
+    assert config["placement"] == "none" and config["method"] == "full"
+    rec, = read_jsonl(out / "log.jsonl")
+    assert rec["method"] == "full" and set(rec["timing"]) == {"robot_s", "cga_s", "model_ga_s"}
+    assert (f"model error {rec['model_error_before']} -> {rec['model_error_after']} blocks "
+            "(sum of the six coverage differences)") in res.output
+    assert seen["learning_progress.png"][0] == "CGA generation"
+    title = seen["coverage_path.png"][1]
+    assert title.startswith("punctuation 1: the model's best turn cycle, walked on the robot\n"
+                            f"{rec['tests'][0]} (")
     res = invoke("evolve", "--out", str(tmp_path / "x"), "--generations", "0", "--profile",
                  "paper", "--placement-error", "0.5,1", *args)
     assert res.exit_code == 2 and "anytime" in res.output
+
+
+@pytest.mark.slow
+def test_the_default_profile_names_what_ran(tmp_path, monkeypatch):
+    """The default fits the model to every observed step and runs no model GA: --method, which
+    chooses the model GA's recombination, is refused in one line (exit 2), given either way;
+    without it the run's log, printed model error and figures name the fit and the search."""
+    from pac_host import plots
+
+    no_ga = [a for a in SMALL if a not in ("--model-generations", "15")]
+    for method in ("full", "partial"):
+        res = invoke("evolve", "--out", str(tmp_path / method), "--generations", "0",
+                     "--method", method, *no_ga)
+        assert res.exit_code == 2, res.output
+        line, = res.output.strip().splitlines()
+        assert line == ("pac-host: error: --method chooses the model GA's recombination, and "
+                        "the default profile runs no model GA (it fits the model to every "
+                        "observed step); use --profile paper, or --model-generations N to run "
+                        "the GA on top")
+        assert not (tmp_path / method).exists()
+    seen = {}
+    real = plots._save
+
+    def save(fig, path):
+        seen[path.name] = (fig.axes[0].get_xlabel(), fig.axes[0].get_title())
+        return real(fig, path)
+
+    monkeypatch.setattr(plots, "_save", save)
+    out = tmp_path / "fit"
+    res = invoke("evolve", "--out", str(out), "--generations", "0", *no_ga)
+    assert res.exit_code == 0, res.output
+    rec, = read_jsonl(out / "log.jsonl")
+    assert set(rec["timing"]) == {"robot_s", "ranking_s", "model_fit_and_search_s"}
+    assert (f"model error {rec['model_error_before']} -> {rec['model_error_after']} cm (RMS "
+            "residual of the observed steps") in res.output
+    assert seen["learning_progress.png"][0] == "punctuations (3 robot tests each)"
+    assert "model's best turn cycle" in seen["coverage_path.png"][1]
 
 
 def test_robot_that_stops_answering_then_resume(baseline, tmp_path):
@@ -150,6 +213,7 @@ def test_a_resumed_config_of_the_wrong_type_is_one_line(baseline, tmp_path):
         assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
+@pytest.mark.slow
 def test_evolve_against_a_pac_sim_process_with_its_tracker(baseline, tmp_path):
     """The real-robot path: --port and --observer, here a separate pac-sim process whose world
     is placed through its tracker (--placer tracker) instead of by a person."""
@@ -182,6 +246,7 @@ def test_evolve_with_manual_counts(tmp_path):
     assert [f["repeat_visits"] for f in figs] == [2, 0, 4] and figs[0]["repeat_visits_estimated"]
 
 
+@pytest.mark.slow
 def test_a_finished_run_carried_on_equals_a_longer_run(baseline, tmp_path):
     short = tmp_path / "short"
     assert invoke("evolve", "--out", str(short), "--generations", "20", *SMALL).exit_code == 0
@@ -196,6 +261,7 @@ def test_emulator_options_are_refused_with_a_port(tmp_path):
     assert res.exit_code == 2 and "--sim-table describes the built-in emulator" in res.output
 
 
+@pytest.mark.slow
 def test_resume_keeps_the_emulated_world(tmp_path):
     """A run against an emulator with an unmodelled effect resumes against the same world."""
     out, whole = tmp_path / "cut", tmp_path / "whole"
@@ -209,6 +275,7 @@ def test_resume_keeps_the_emulated_world(tmp_path):
     assert results(out) == results(whole)
 
 
+@pytest.mark.slow
 def test_path_fitness_brings_the_used_rows_to_the_robot(tmp_path):
     """With --model-fitness steps the model GA scores one-step residuals of the observed
     (noisy) paths, so the rows the tests use converge to the true robot's rows."""
@@ -229,3 +296,31 @@ def load_table_rows(name):
     from pac_host.model import resolve_table
 
     return resolve_table(name).rows
+
+
+def test_resume_refuses_options_that_differ_from_the_saved_run(baseline, tmp_path):
+    """`evolve --resume --seed 5` on a seed-4 run names --seed and changes nothing; options
+    left out or the same are taken from the saved run, which a line lists."""
+    import shutil
+
+    out = tmp_path / "copy"
+    shutil.copytree(baseline, out)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    for args, words in ((["--seed", "5"], "--seed 5 differs from the saved run's 4; resume "
+                                          "takes the saved options, drop --seed or start a "
+                                          "new --out"),
+                        (["--seed", "4", "--profile", "paper", "--sim-table", "measured"],
+                         "drop --profile and --sim-table")):
+        res = invoke("evolve", "--resume", str(out), *args)
+        assert res.exit_code == 2, res.output
+        lines = res.output.strip().splitlines()
+        assert len(lines) == 1 and words in lines[0], res.output
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    res = invoke("evolve", "--resume", str(out), "--seed", "4", "--placement-error", "0.5,1.0")
+    assert res.exit_code == 0, res.output
+    took = res.output.splitlines()[0]
+    assert took.startswith("resuming with the saved options") and "--interval 20" in took
+    assert "--seed" not in took and "--placement-error" not in took
+    assert results(out) == results(baseline)
+    res = invoke("evolve", "--resume", str(tmp_path / "missing"))
+    assert res.exit_code == 2 and "no such directory" in res.output

@@ -158,7 +158,7 @@ def test_starts_give_each_sources_best_proposal_best_first():
 
 def test_a_chains_restarts_climb_the_best_start_again_not_a_weaker_one(monkeypatch):
     # climbs from one start end in different basins; the best start's are the likeliest to
-    # end high, so a restart on the same model climbs it again (docs/learning.md)
+    # end high, so a restart on the same model climbs it again (docs/explanation/learning.md)
     table = shifted_table()
     sources = LIB.without("shifted").sources()
     first = shapes.starts_by_source(Objective(table.rows), sources)
@@ -220,7 +220,7 @@ def test_a_chain_carried_to_a_new_model_starts_from_sources_it_has_not_tried():
 
 def test_a_new_model_re_expresses_the_sources_already_taken_too():
     # a source taken early was expressed on an early, wrong model; re-expressed on a later
-    # one it may start higher than the origin there (docs/learning.md, noisy_rows)
+    # one it may start higher than the origin there (docs/explanation/learning.md, noisy_rows)
     table = shifted_table()
     sources = LIB.without("shifted").sources()
     keys = [shapes.source_key(src) for src in sources]

@@ -23,11 +23,20 @@ from pac_host.cli.options import (
     shapes_option,
     shorten_after_option,
 )
-from pac_host.coverage.placement import HAND
+from pac_host.cli.progress import Progress, quiet_option
+from pac_host.cli.resume import jsonable, refuse, saved_doc, took_line
+from pac_host.coverage.placement import HAND, parse_placement
 from pac_host.errors import InputError
 from pac_host.model.table import BUILTIN
 from pac_host.robot.connect import connect
-from pac_host.robot.evolve import EvolveConfig, evolve, load_config, recovery_summary, save_config
+from pac_host.robot.evolve import (
+    CONFIG_FORMAT,
+    EvolveConfig,
+    evolve,
+    load_config,
+    recovery_summary,
+    save_config,
+)
 from pac_host.robot.observers import ManualObserver
 from pac_host.robot.recovery import describe_counts
 
@@ -37,13 +46,17 @@ from pac_host.robot.recovery import describe_counts
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Directory for the run's files (required unless --resume).")
 @click.option("--resume", "resume_dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Continue the run in this directory from its last complete punctuation.")
+              help="Continue the run in this directory from its last complete punctuation, "
+                   "with the options it was started with (an option typed that differs is "
+                   "refused; --generations may carry a run on).")
 @click.option("--generations", default=1000, show_default=True, type=Bounded(limits.GENERATIONS),
               help="CGA generations in all.")
 @click.option("--interval", default=40, show_default=True, type=Bounded(limits.INTERVAL),
               help="CGA generations between punctuations (tests on the robot).")
 @click.option("--method", default="partial", show_default=True,
-              type=click.Choice(["partial", "full"]), help="Model GA recombination.")
+              type=click.Choice(["partial", "full"]),
+              help="The model GA's recombination (the paper's partial, or full); refused where "
+                   "no model GA runs (the default profile, unless --model-generations N).")
 @click.option("--model-fitness", default="coverage", show_default=True,
               type=click.Choice(["coverage", "steps"]),
               help="Model GA score: the paper's six coverage differences, or the observed "
@@ -78,25 +91,31 @@ from pac_host.robot.recovery import describe_counts
                    "on (its 13 minutes become search time; the run is then not reproducible "
                    "from its seed). [default: on with --port, off with the built-in emulator]")
 @placement_option(None, f"{HAND.to_text()} with an anytime profile, none with paper")
+@quiet_option
 def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness, seed, budget,
                model_spec, cga_population, model_population, model_generations, initial_generations,
                correction, structure, tests, operational, placement, profile, search_evaluations,
                search_models, search_chains, explore, kick_length_cost, shorten_after, shapes,
-               search_while_walking, port, observer_spec, placer,
+               search_while_walking, port, observer_spec, placer, quiet,
                **sim) -> None:
     """Co-evolve the model and the turn cycle with tests on the robot (PAL).
 
     Every INTERVAL CGA generations the best turn cycle and two perturbations of it run on the
     robot from the start pose (45, 30, 90) for BUDGET gait cycles each; an observer reports the
-    path; the model GA corrects the model; the robot's operational turn cycle is replaced only
-    when a new one does better on the robot. A person places a real robot at each start pose
-    when asked (press Enter); the built-in emulator is placed through its tracker.
+    path; the model is corrected (by default fitted to every observed step; with --profile
+    paper by the paper's model GA with partial recombination, or full with --method full);
+    the robot's operational turn cycle is replaced only when a new one does better on the
+    robot. A person places a real robot at each start pose when asked (press Enter); the
+    built-in emulator is placed through its tracker.
 
     With the default profile each punctuation's tests correct the model and the turn-cycle
     search then spends a budget of evaluations on it (the same run on any machine); on a real
     robot (--port) it also searches while the robot walks the tests (--no-search-while-walking
     keeps a run reproducible); --profile paper runs INTERVAL generations of the paper's CGA
     between punctuations instead.
+
+    Progress goes to stderr (a line per punctuation through a pipe; on a real robot also the
+    tests and gait cycles walked, at most every half minute); --quiet silences it.
 
     Writes OUT/log.jsonl (a line per punctuation), observations.jsonl (every observation, as
     it happens), runs.jsonl (observed runs, for `pac-host diagnose`), model.json,
@@ -108,7 +127,9 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
     if resume_dir is not None:
         if out_dir is not None and Path(out_dir) != Path(resume_dir):
             raise InputError("give either --out or --resume DIR (the run's own directory)")
+        saved_doc(resume_dir, "config.json", CONFIG_FORMAT, "an evolve run")
         root, cfg = resume_dir, load_config(resume_dir)
+        _check_resume(cfg, port)
         if given("generations"):  # a finished run may be carried on further
             cfg = replace(cfg, generations=generations)
             cfg.check()
@@ -128,6 +149,12 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                                  search_chains=search_chains, explore=explore,
                                  kick_length_cost=kick_length_cost, shorten_after=shorten_after,
                                  shapes=shapes))
+        from pac_host.learning.config import NO_MODEL_GA, RUN_THE_GA, recombination_inert
+
+        if given("method") and observer_spec != "manual" and recombination_inert(learn):
+            # (counts from a person need the paper's model GA: there --method matters)
+            raise InputError(f"--method chooses the model GA's recombination, and the "
+                             f"{profile} profile {NO_MODEL_GA}; {RUN_THE_GA}")
         if placement is None:  # a robot is placed by hand (or seen through a noisy tracker)
             learn = replace(learn, placement="none" if learn.search == "cga" else HAND.to_text())
         if search_while_walking is None:
@@ -165,19 +192,69 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                        "paper's model GA with its six coverage differences "
                        "(--correction ga --model-fitness coverage)")
 
+        from pac_host.learning.model_ga import ERROR_UNITS
+
         def show(rec: dict) -> None:
             figs = "/".join(str(o["fitness"]) for o in rec["observed"])
             click.echo(f"generation {rec['generation']}: tests {figs} on the robot (fitness); "
-                       f"model error {rec['model_error_before']} -> {rec['model_error_after']}; "
+                       f"model error {rec['model_error_before']} -> {rec['model_error_after']} "
+                       f"{ERROR_UNITS[rec['model_fitness']]}; "
                        f"operational {rec['operational']} fitness {rec['operational_fitness']}")
 
-        last = evolve(root, cfg, conn, resume=resume_dir is not None, on_punctuation=show)
+        with Progress("evolve", quiet, minor=("tests", "gait cycles"),
+                      minor_every=30.0) as progress:
+            last = evolve(root, cfg, conn, resume=resume_dir is not None, on_punctuation=show,
+                          progress=progress)
     if last:
         click.echo(f"operational turn cycle {last['operational']} (fitness "
                    f"{last['operational_fitness']} on the robot); files in {root}")
         rec = recovery_summary(root)
         if rec:
             click.echo(describe_counts(rec))
+
+
+def _saved_options(cfg: EvolveConfig, port: str | None) -> dict[str, object]:
+    """The options a saved run was started with, as a resume compares typed ones (the
+    defaults a profile chose included; --generations is not one: a run may be carried on)."""
+    from dataclasses import fields
+
+    from pac_host.learning import profiles
+
+    names = {p.name for p in click.get_current_context().command.params}
+    out: dict[str, object] = {f.name: getattr(cfg, f.name) for f in fields(cfg)
+                              if f.name in names and f.name != "generations"}
+    out["model_spec"] = cfg.model
+    out["profile"] = next((p for p, o in profiles.PROFILES.items()
+                           if o.get("search") == cfg.search), None)
+    if port is None and "emulator" in cfg.robot:
+        out.update(cfg.robot["emulator"])
+    return out
+
+
+def _typed_value(name: str, value):
+    """A typed option's value as the saved config holds it."""
+    if name in ("model_spec", "sim_table"):
+        return _spec(value)
+    if name == "placement":
+        p = parse_placement(value)
+        return "none" if p is None else p.to_text()
+    return jsonable(value)
+
+
+def _check_resume(cfg: EvolveConfig, port: str | None) -> None:
+    """--resume: options typed that differ from the saved run's are refused, each named; the
+    saved values of those left out are taken (a line says which)."""
+    params = click.get_current_context().params
+    differ, taken = [], {}
+    for name, was in _saved_options(cfg, port).items():
+        now = _typed_value(name, params[name]) if params.get(name) is not None else None
+        if given(name):
+            if now != jsonable(was):
+                differ.append((name, now, jsonable(was)))
+        elif now != jsonable(was):
+            taken[name] = jsonable(was)
+    refuse(differ, "--out")
+    click.echo(took_line(taken))
 
 
 def _spec(table: str) -> str:

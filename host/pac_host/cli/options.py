@@ -96,7 +96,7 @@ def effects_module_option():
         expose_value=False,
         callback=_load_modules,
         help="Python file defining effects with pac_host.model.effects.register_effect "
-             "(repeatable; see docs/diagnose.md).",
+             "(repeatable; see docs/reference/effects.md).",
     )
 
 
@@ -111,8 +111,10 @@ def profile_option():
     return click.option(
         "--profile", default=profiles.DEFAULT, show_default=True,
         type=click.Choice(sorted(profiles.PROFILES)),
-        help="paper: the paper's 40 CGA generations between punctuations; default: anytime "
-             "PAL, a budget of search evaluations per punctuation.")
+        help="paper: the paper's method, its model GA with partial (or full) recombination "
+             "and 40 CGA generations between punctuations; default: the model fitted to every "
+             "observed step (no model GA) and anytime PAL, a budget of search evaluations per "
+             "punctuation.")
 
 
 def search_evaluations_option():
@@ -191,7 +193,7 @@ def profile_pal(profile: str, search_evaluations: int | None, model_generations:
     from dataclasses import replace
 
     from pac_host.learning import profiles
-    from pac_host.learning.pal import PALConfig, model_generations_for
+    from pac_host.learning.config import PALConfig, model_generations_for
 
     cfg = profiles.apply(profile, replace(PALConfig(), **fields))
     src = click.get_current_context().get_parameter_source

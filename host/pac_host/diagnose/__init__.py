@@ -1,5 +1,5 @@
 """Diagnose the sim-to-real gap: where it lies, which unmodelled effect causes it, how far it
-shrinks, checked on held-out runs. See docs/diagnose.md for the method."""
+shrinks, checked on held-out runs. See docs/explanation/diagnosis.md for the method."""
 
 from pac_host.diagnose.pipeline import Diagnosis, diagnose, split_runs
 from pac_host.diagnose.runs import Run, read_runs, write_runs

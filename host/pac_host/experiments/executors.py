@@ -23,7 +23,7 @@ Done = Callable[[object], None] | None
 # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers; that turns glibc's adaptive mmap
 # threshold off, so numpy's temporaries are mapped and unmapped on every call: the coverage
 # simulator then takes 25-35% more CPU time on a worker than in this process (measured). Our
-# workers keep glibc's default (a remote cluster's: see docs/sweep.md).
+# workers keep glibc's default (a remote cluster's: see docs/how-to/sweep.md).
 WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
 

@@ -36,6 +36,8 @@ from pac_host.experiments import stats
 from pac_host.experiments.executors import Executor, local_executor
 from pac_host.files import write_atomic
 from pac_host.learning import model_ga, pal
+from pac_host.learning.config import NO_MODEL_GA, RUN_THE_GA, recombination_inert
+from pac_host.model import best_known as known_records
 from pac_host.model.effects import effective_rows
 from pac_host.model.table import GaitTable, measured_table, shifted_table
 from pac_host.search import cga
@@ -44,6 +46,11 @@ from pac_host.search.optimize import OptimizeConfig, run_chain
 # seed streams; STAGE_PLACED draws the start poses a run's final turn cycle is walked from
 STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED = 0, 1, 2, 3
 METHODS = ("full", "partial", "oracle")
+# the optimum search's evaluations per run for the paper's 1000 generations; shorter runs get
+# proportionately fewer (optimum_evaluations_for), down to the floor
+OPTIMUM_EVALUATIONS = 5_000_000
+OPTIMUM_EVALUATIONS_FLOOR = 200_000
+PAPER_GENERATIONS = 1000
 TARGET = 0.9  # punctuations to the target: operational coverage at 90% of the best known
 FINAL_TARGET = 0.95  # and where a run ends, against the best known
 
@@ -52,7 +59,8 @@ FINAL_TARGET = 0.95  # and where a run ends, against the best known
 class ExperimentConfig:
     seeds: int = 5
     generations: int = 1000
-    methods: tuple[str, ...] = ("full", "partial", "oracle")
+    # default_methods(pal): the default PAL config runs no model GA, so full would be partial
+    methods: tuple[str, ...] = ("partial", "oracle")
     base_seed: int = 0
     initial_generations: int = 1000  # the long CGA run on the model that seeds each population
     optimum_runs: int = 8
@@ -60,7 +68,7 @@ class ExperimentConfig:
     # how the optimum is established: "cga" (long CGA runs, the paper profile) or "optimize"
     # (chains of pac_host.search.optimize with optimum_evaluations each)
     optimum_search: str = "cga"
-    optimum_evaluations: int = 5_000_000
+    optimum_evaluations: int = OPTIMUM_EVALUATIONS
     best_known: int | None = None  # the best fitness known on the actual robot, if known
     pal: pal.PALConfig = field(default_factory=pal.PALConfig)
 
@@ -84,6 +92,20 @@ class ExperimentConfig:
         if self.pal.model_fitness not in model_ga.FITNESSES:
             raise InputError(f"--model-fitness takes {', '.join(model_ga.FITNESSES)}, got "
                              f"{self.pal.model_fitness!r}")
+        if "full" in self.methods and recombination_inert(self.pal):
+            raise InputError(f"--methods {','.join(self.methods)}: full differs from partial "
+                             f"only in the model GA's recombination, and this profile "
+                             f"{NO_MODEL_GA}; {RUN_THE_GA}")
+
+
+def optimum_evaluations_for(generations: int) -> int:
+    """Evaluations of each optimum run when none are given: 5,000,000 for the paper's 1000
+    generations, in proportion to the run's generations, and at least 200,000.
+
+    >>> optimum_evaluations_for(1000), optimum_evaluations_for(120), optimum_evaluations_for(8)
+    (5000000, 600000, 200000)
+    """
+    return max(OPTIMUM_EVALUATIONS_FLOOR, OPTIMUM_EVALUATIONS * generations // PAPER_GENERATIONS)
 
 
 def _rng(base: int, seed: int, stage: int, extra: int = 0) -> np.random.Generator:
@@ -238,10 +260,14 @@ def _pal_fields(p: pal.PALConfig) -> dict:
     return {k: getattr(p, k) for k in p.__dataclass_fields__}
 
 
-def recombination_inert(p: pal.PALConfig) -> bool:
-    """Whether full and partial recombination are the same run: they differ only in the model
-    GA, and with the whole-table fit and no model GA generations none runs."""
-    return p.correction == "fit" and p.model_generations == 0
+def default_methods(p: pal.PALConfig) -> tuple[str, ...]:
+    """The methods an experiment compares unless told: full, partial and the oracle; where
+    recombination is inert full would be partial's run again, so partial and the oracle.
+
+    >>> default_methods(pal.PALConfig(correction="ga")), default_methods(pal.PALConfig())
+    (('full', 'partial', 'oracle'), ('partial', 'oracle'))
+    """
+    return tuple(m for m in METHODS if not (m == "full" and recombination_inert(p)))
 
 
 def read_complete_runs(log_path: Path, generations: int) -> dict[tuple[int, str], list]:
@@ -378,12 +404,15 @@ def run_experiment(
     jobs: int | Executor = 1,
     resume: bool = False,
     progress: Callable[[str, int, int], None] | None = None,
+    options: dict | None = None,
 ) -> dict:
     """Run the experiment, writing log.jsonl as it goes and summary.json at the end.
 
     ``jobs``: local worker processes, or an :class:`~pac_host.experiments.executors.Executor` (a
     Dask
-    cluster); the results do not depend on it."""
+    cluster); the results do not depend on it. ``progress(stage, done, total)`` hears each
+    stage start (``done`` 0) and each of its tasks finish: "optimum" (runs), "initial
+    populations" (seeds), "pal" (runs)."""
     cfg.check()
     model = model or measured_table()
     actual = actual or shifted_table()
@@ -392,12 +421,17 @@ def run_experiment(
     done_runs = read_complete_runs(log_path, cfg.generations) if resume else {}
     if not resume and log_path.exists() and log_path.stat().st_size > 0:
         raise InputError(f"{log_path} exists: use --resume to continue it, or another --out")
+    if options is not None and not resume:  # what a resume checks its options against
+        write_atomic(out_dir / "config.json", json.dumps(options, indent=1) + "\n")
     if resume and log_path.exists():  # drop incomplete runs' lines; they are rerun identically
         write_atomic(log_path, "".join(json.dumps(r) + "\n"
                                        for recs in done_runs.values() for r in recs))
 
     def tick(stage: str, total: int):
+        """The executor's callback for a stage's finished tasks; reports the stage's start."""
         count = [0]
+        if progress and total:
+            progress(stage, 0, total)
 
         def done(_):
             count[0] += 1
@@ -408,20 +442,15 @@ def run_experiment(
     opt_args = [(actual, k, cfg) for k in range(cfg.optimum_runs)]
     optimum_runs = _map(optimum_run, opt_args, jobs, tick("optimum", len(opt_args)))
 
-    # with recombination inert, full's run is partial's: it is run once and logged for both
-    twin = recombination_inert(cfg.pal) and {"full", "partial"} <= set(cfg.methods)
-    todo = [(s, m) for s in range(cfg.seeds) for m in cfg.methods
-            if (s, m) not in done_runs and not (twin and m == "full")]
+    todo = [(s, m) for s in range(cfg.seeds) for m in cfg.methods if (s, m) not in done_runs]
     seeds_needed = sorted({s for s, _ in todo})
     pops = dict(zip(seeds_needed, _map(
         initial_population, [(model, s, cfg) for s in seeds_needed], jobs,
         tick("initial populations", len(seeds_needed))), strict=True))
     fresh = _map_pal_runs([(model, actual, s, m, pops[s], cfg) for s, m in todo],
-                          jobs, log_path, tick("PAL runs", len(todo)))
+                          jobs, log_path, tick("pal", len(todo)))
     results = fresh + [_result_from_log(recs, s, m, actual, cfg)
                        for (s, m), recs in done_runs.items()]
-    if twin:
-        results += _twin_runs(results, log_path)
     searched = max(r["fitness"] for r in optimum_runs)
     observed = max(max(r["coverage"]) for r in results)
     optimum = max(searched, observed)
@@ -431,10 +460,10 @@ def run_experiment(
          "how": f"the best of {cfg.optimum_runs} {_optimum_search(cfg)['runs']} on the actual "
                 "robot's table, and of every operational turn cycle the experiment's runs "
                 "tested on it"}, indent=1) + "\n")
-    best_known = max(optimum, cfg.best_known or 0)
+    best = best_known_on(actual, cfg, optimum)
     for r in results:
         r["reached_optimum_at"] = reached_at(r["generations"], r["coverage"], optimum)
-        r["punctuations_to_target"] = punctuations_to(r["coverage"], TARGET * best_known)
+        r["punctuations_to_target"] = punctuations_to(r["coverage"], TARGET * best["fitness"])
     results.sort(key=lambda r: (r["method"], r["seed"]))
     summary = {
         "format": "pac-experiment/1",
@@ -445,30 +474,31 @@ def run_experiment(
         "optimum": optimum,
         "runs": results,
         "comparison": compare(results, cfg, optimum),
-        "robot_time": robot_time_report(results, best_known),
-        "same_runs": ([{"method": "full", "same_as": "partial",
-                        "why": "recombination acts only in the model GA, which does not run "
-                               "(whole-table fit, 0 model GA generations)"}] if twin else []),
+        "best_known": best,
+        "robot_time": robot_time_report(results, best["fitness"]),
     }
     write_atomic(out_dir / "summary.json", json.dumps(summary, indent=1) + "\n")
     return summary
 
 
-def _twin_runs(results: list[dict], log_path: Path) -> list[dict]:
-    """``full``'s runs as copies of ``partial``'s where recombination is inert (seeds whose
-    full run is not already there), their punctuation records appended to the log."""
-    have = {r["seed"] for r in results if r["method"] == "full"}
-    twins = [{**r, "method": "full"} for r in sorted(results, key=lambda r: r["seed"])
-             if r["method"] == "partial" and r["seed"] not in have]
-    seeds = {r["seed"] for r in twins}
-    lines = []
-    for line in log_path.read_text().splitlines() if seeds else []:
-        rec = json.loads(line)
-        if rec["method"] == "partial" and rec["seed"] in seeds:
-            lines.append(json.dumps({**rec, "method": "full", "same_run_as": "partial"}) + "\n")
-    with open(log_path, "a") as f:
-        f.write("".join(lines))
-    return twins
+def best_known_on(actual: GaitTable, cfg: ExperimentConfig, optimum: int) -> dict:
+    """What robot time is measured against: the highest of the experiment's own optimum, the
+    package's record for the actual robot (where it is a built-in one, at the records'
+    budget: :mod:`pac_host.model.best_known`) and ``cfg.best_known`` (``--best-known``); with
+    which it is (``used``: "optimum", "built-in" or "given") and the candidates."""
+    rec = known_records.for_table(actual, cfg.pal.budget)
+    found = [(optimum, "optimum", "this experiment's optimum on the actual robot")]
+    if rec is not None:
+        found.append((rec[1]["fitness"], "built-in",
+                      f"the best known on the built-in robot {rec[0]} ({rec[1]['turn_cycle']}; "
+                      "pac_host/model/best_known.json)"))
+    if cfg.best_known is not None:
+        found.append((cfg.best_known, "given", "--best-known"))
+    fitness, used, source = max(found, key=lambda f: f[0])  # a tie: the first, own optimum
+    return {"fitness": fitness, "used": used, "source": source, "optimum": optimum,
+            "built_in": ({"robot": rec[0], "turn_cycle": rec[1]["turn_cycle"],
+                          "fitness": rec[1]["fitness"]} if rec is not None else None),
+            "given": cfg.best_known}
 
 
 def _optimum_search(cfg: ExperimentConfig) -> dict:

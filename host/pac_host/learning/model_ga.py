@@ -35,6 +35,12 @@ METHODS = ("full", "partial")
 FITNESSES = ("coverage", "steps")
 # Weight of a degree of heading error against a centimetre of position error in "steps".
 HEADING_CM_PER_DEG = 1.0
+# What a model error under each fitness counts (a punctuation record's model_fitness)
+ERROR_UNITS = {
+    "coverage": "blocks (sum of the six coverage differences)",
+    "steps": f"cm (RMS residual of the observed steps, a degree of heading as "
+             f"{HEADING_CM_PER_DEG:g} cm)",
+}
 
 ErrorFn = Callable[[np.ndarray], np.ndarray]
 # Standard deviation of a mutation (and of the initial perturbation) per component F, T, dH:

@@ -1,7 +1,7 @@
 """Simulated actual robots beyond the paper's shifted table, for measuring how PAL learns.
 
 The shifted robot is exactly one library effect (a turn shift), so a method could win there by
-recognising it. These robots are made to be hard in different ways (docs/learning.md):
+recognising it. These robots are made to be hard in different ways (docs/explanation/learning.md):
 
 - ``noisy_rows``: an independent error on every value of every row (no structure to find);
 - ``asymmetric``: left and right turns differ (right turns 25% weaker, left turns one strength

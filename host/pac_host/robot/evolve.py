@@ -24,6 +24,7 @@ by the run's identity.
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -38,7 +39,7 @@ from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError
 from pac_host.experiments.experiment import ExperimentConfig, initial_population
 from pac_host.files import write_atomic
 from pac_host.learning import pal
-from pac_host.learning.pal import model_generations_for
+from pac_host.learning.config import model_generations_for
 from pac_host.model.table import GaitTable, resolve_table, save_table
 from pac_host.robot.connect import Connection
 from pac_host.robot.linked import AppendLog, LinkedRobot
@@ -233,8 +234,13 @@ def evolve(
     conn: Connection,
     resume: bool = False,
     on_punctuation: Callable[[dict], None] | None = None,
+    progress: Callable[..., None] | None = None,
 ) -> dict:
-    """Run (or resume) PAL on the connected robot; returns the last punctuation's record."""
+    """Run (or resume) PAL on the connected robot; returns the last punctuation's record.
+
+    ``progress(stage, done, total)`` hears the punctuations ("punctuations": at the start,
+    then as each ends) and, with a fourth argument (the run id), the tests and the gait cycles
+    walked in each (see :class:`~pac_host.robot.linked.LinkedRobot`)."""
     cfg.check()
     d = EvolveDir(root)
     state, rng, fresh = _resume(d) if resume else _start(d, cfg)
@@ -244,13 +250,17 @@ def evolve(
              "time": time.time()})
     robot = LinkedRobot(conn.robot, conn.observer, conn.placer, cfg.budget, obs_log, cfg.seed,
                         START_POSE)
+    robot.progress = progress
     records = _read_jsonl(d.log)
     model_name = resolve_table(cfg.model).name
     cga_s = 0.0
+    total = len(records) + punctuations_left(state.generation, cfg, fresh)
     if not fresh:
         if state.generation >= cfg.generations:
             return records[-1] if records else {}
         state, cga_s = _advance(state, rng, cfg)
+    if progress is not None:
+        progress("punctuations", len(records), total)
     while True:
         t0 = time.perf_counter()
         robot.generation = state.generation
@@ -270,14 +280,49 @@ def evolve(
             rec["true_error_on_used"] = {"before": error_on_used(model_before, conn.truth, used),
                                          "after": error_on_used(state.models[0], conn.truth, used)}
         rec["recovery"] = _recovery_record(robot)
-        rec["timing"] = {"robot_s": round(timer.seconds, 4), "cga_s": round(cga_s, 4),
-                         "model_ga_s": round(time.perf_counter() - t0 - timer.seconds, 4)}
-        _persist(d, state, rng, rec, robot, timer, model_name, records)
+        between, at = timing_names(pcfg)
+        rec["timing"] = {"robot_s": round(timer.seconds, 4), between: round(cga_s, 4),
+                         at: round(time.perf_counter() - t0 - timer.seconds, 4)}
+        _persist(d, state, rng, rec, robot, timer, model_name, records, pcfg.search)
         if on_punctuation is not None:
             on_punctuation(rec)
+        if progress is not None:
+            progress("punctuations", len(records), total)
         if state.generation >= cfg.generations:
             return rec
         state, cga_s = _advance(state, rng, cfg)
+
+
+def punctuations_left(generation: int, cfg: EvolveConfig, fresh: bool) -> int:
+    """Punctuations still to come: at ``generation`` itself if none is done yet, then every
+    ``interval`` generations and at ``cfg.generations``.
+
+    >>> cfg = EvolveConfig(generations=100, interval=40)
+    >>> punctuations_left(0, cfg, True), punctuations_left(40, cfg, False)
+    (4, 2)
+    """
+    return int(fresh) + max(0, math.ceil((cfg.generations - generation) / cfg.interval))
+
+
+def timing_names(pcfg: pal.PALConfig) -> tuple[str, str]:
+    """The log's names for a punctuation's host seconds, for what ran: between punctuations
+    (the CGA's generations; with an anytime search, only the ranking of its finds) and at the
+    punctuation, besides the robot's time (the model's correction: the model GA, the fit, or
+    the fit with the GA on top; with an anytime search, also its budget on the corrected
+    model).
+
+    >>> timing_names(pal.PALConfig(correction="ga", model_generations=40))
+    ('cga_s', 'model_ga_s')
+    >>> timing_names(pal.PALConfig(search="ils", search_evaluations=1000))
+    ('ranking_s', 'model_fit_and_search_s')
+    """
+    if pcfg.correction == "ga":
+        model = "model_ga"
+    else:
+        model = "model_fit_and_ga" if pcfg.model_generations else "model_fit"
+    if pcfg.search == "cga":
+        return "cga_s", f"{model}_s"
+    return "ranking_s", f"{model}_and_search_s"
 
 
 def _recovery_record(robot: LinkedRobot) -> dict:
@@ -322,11 +367,27 @@ class _TimedRobot:
             self.seconds += time.perf_counter() - t0
 
 
+def path_title(rec: dict, punctuation: int) -> str:
+    """coverage_path.png's title: the path it shows is the first test's, the model's best
+    turn cycle walked on the robot at this punctuation, which may or may not be the robot's
+    operational turn cycle.
+
+    >>> print(path_title({"tests": ["12:9", "5:2"], "operational": "5:2"}, 3))
+    punctuation 3: the model's best turn cycle, walked on the robot
+    12:9 (operational: 5:2)
+    """
+    tested, operational = rec["tests"][0], rec["operational"]
+    return (f"punctuation {punctuation}: the model's best turn cycle, walked on the robot\n"
+            + (f"{tested} (the operational turn cycle)" if tested == operational
+               else f"{tested} (operational: {operational})"))
+
+
 def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: dict,
-             robot: LinkedRobot, timer: _TimedRobot, model_name: str, records: list[dict]
-             ) -> None:
+             robot: LinkedRobot, timer: _TimedRobot, model_name: str, records: list[dict],
+             search: str = "cga") -> None:
     """Write a complete punctuation: runs, log line, model, turn cycle, plots, then the state
-    (last, atomically: a crash before it makes resume redo this punctuation)."""
+    (last, atomically: a crash before it makes resume redo this punctuation). ``search``:
+    what ran between punctuations (the plots' axis)."""
     from pac_host.plots import coverage_path, learning_progress
 
     runs_log, log = AppendLog(d.runs), AppendLog(d.log)
@@ -344,8 +405,6 @@ def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: d
     best = timer.results[0] if timer.results else None
     if best is not None and best.poses is not None:
         coverage_path(best.poses, detect_blocks(best.poses), d.path_png,
-                      f"generation {state.generation}, best turn cycle on the robot:\n"
-                      f"{rec['tests'][0]}",
-                      best.figures())
-    learning_progress(records, d.progress_png, "PAL on the robot")
+                      path_title(rec, len(records)), best.figures())
+    learning_progress(records, d.progress_png, "PAL on the robot", search)
     write_atomic(d.state, json.dumps(pal.state_to_json(state, rng)) + "\n")

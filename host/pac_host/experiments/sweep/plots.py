@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from pac_host.experiments.sweep.spec import Cell
-from pac_host.plots import METHOD_COLOURS, _save, plt
+from pac_host.plots import METHOD_COLOURS, _save, plt, progress_axis
 
 
 def _groups(rows: list[dict]) -> dict[tuple[int, str], list[dict]]:
@@ -54,7 +54,10 @@ def final_coverage(cells: list[Cell], rows: list[dict], keys: list[str], path: P
 
 
 def mean_curves(cells: list[Cell], rows: list[dict], keys: list[str], path: Path) -> Path:
-    """Mean operational coverage against CGA generation, one line per cell and method."""
+    """Mean operational coverage against CGA generation, one line per cell and method; against
+    punctuation where a cell ran no CGA between punctuations (an anytime search)."""
+    # one axis for every cell: the CGA's generations only if the CGA ran in all of them
+    search = "cga" if all(c.config.pal.search == "cga" for c in cells) else "anytime"
     groups = _groups(rows)
     labels = {c.index: c.label(keys) for c in cells}
     methods = {c.index: set(c.config.methods) for c in cells}
@@ -63,9 +66,9 @@ def mean_curves(cells: list[Cell], rows: list[dict], keys: list[str], path: Path
         n = min(len(r["curve_coverage"]) for r in rs)
         mean = np.mean([r["curve_coverage"][:n] for r in rs], axis=0)
         name = f"{_name(labels, methods, i, method)} ({len(rs)} seeds)"
-        ax.step(rs[0]["curve_generations"][:n], mean, where="post", lw=1.5,
-                label=name if len(groups) <= 12 else None)
-    ax.set_xlabel("CGA generation")
+        x, _ = progress_axis(search, rs[0]["curve_generations"][:n])
+        ax.step(x, mean, where="post", lw=1.5, label=name if len(groups) <= 12 else None)
+    ax.set_xlabel(progress_axis(search, ())[1])
     ax.set_ylabel("mean coverage fitness on the actual robot")
     ax.set_title("Mean operational coverage per cell")
     ax.set_ylim(bottom=0)

@@ -6,7 +6,10 @@ own name (``budget`` is ``pal.budget``: the shallowest field of that name wins; 
 exists twice at the same depth, so it needs its path). A field added to the config is sweepable
 without a change here; values are checked against the field's type. Besides the config, a cell
 names its tables: ``actual`` and ``model`` (``measured``, ``shifted`` or a table file) and
-``effects`` (a list of ``name:param=value,...`` added to the actual robot).
+``effects`` (a list of ``name:param=value,...`` added to the actual robot), and its ``profile``
+(:mod:`pac_host.learning.profiles`: ``paper``, ``default``, or ``none``, the configuration's
+own defaults), applied under the cell's other settings. Unless a cell sets ``methods``, it
+compares :func:`~pac_host.experiments.experiment.default_methods` of its PAL configuration.
 
 >>> names = setting_names()
 >>> names["budget"], names["model_fitness"], names["pal.cga.elite"]
@@ -25,10 +28,14 @@ from functools import cache
 from typing import Any
 
 from pac_host.errors import InputError
-from pac_host.experiments.experiment import ExperimentConfig
+from pac_host.experiments.experiment import ExperimentConfig, default_methods
+from pac_host.learning import pal, profiles
 from pac_host.typed_values import coerce
 
 TABLE_SETTINGS = {"actual": "shifted", "model": "measured", "effects": ()}
+# the profile a cell's PAL settings start from; "none": the configuration's own defaults
+PROFILE = "profile"
+NO_PROFILE = "none"
 
 # Fields every PAL run of the experiment sets itself: sweeping them would change nothing.
 SET_BY_THE_EXPERIMENT = {
@@ -78,11 +85,11 @@ def setting_names(cls: type = ExperimentConfig) -> dict[str, Path_]:
 def canonical_name(key: str) -> str:
     """The short name of a setting (``pal.budget`` -> ``budget``); an unknown one is an error."""
     key = key.strip().replace("-", "_")
-    if key in TABLE_SETTINGS:
+    if key in TABLE_SETTINGS or key == PROFILE:
         return key
     names = setting_names()
     if key not in names:
-        known = sorted(set(names) | set(TABLE_SETTINGS))
+        known = sorted(set(names) | set(TABLE_SETTINGS) | {PROFILE})
         path = tuple(key.split("."))
         if path in SET_BY_THE_EXPERIMENT:
             hint = f" (the experiment sets it; sweep {SET_BY_THE_EXPERIMENT[path]!r})"
@@ -98,6 +105,12 @@ def check_value(key: str, value: Any) -> Any:
     """A setting's value, checked and in its JSON form (``key`` is canonical)."""
     if key in ("actual", "model"):
         return coerce(value, str, f"setting {key!r}")
+    if key == PROFILE:
+        name = coerce(value, str, f"setting {key!r}")
+        choices = [*profiles.PROFILES, NO_PROFILE]
+        if name not in choices:
+            raise InputError(f"setting 'profile' takes {', '.join(choices)}, got {name!r}")
+        return name
     if key == "effects":
         return (coerce(value, tuple[str, ...], f"setting {key!r}") if not isinstance(value, str)
                 else [value])
@@ -111,15 +124,21 @@ def _set(obj: Any, path: Path_, value: Any) -> Any:
 
 
 def experiment_config(settings: dict[str, Any]) -> ExperimentConfig:
-    """The config a cell's (canonical, checked) settings make over the defaults, checked as the
-    CLI's is."""
+    """The config a cell's (canonical, checked) settings make over its profile's (the
+    defaults without one), checked as the CLI's is."""
+    profile = settings.get(PROFILE, NO_PROFILE)
     cfg = ExperimentConfig()
+    if profile != NO_PROFILE:
+        cfg = replace(cfg, pal=profiles.apply(profile, pal.PALConfig()),
+                      optimum_search=profiles.OPTIMUM_SEARCH[profile])
     for key, value in settings.items():
-        if key in TABLE_SETTINGS:
+        if key in TABLE_SETTINGS or key == PROFILE:
             continue
         path = setting_names()[key]
         if isinstance(value, list):
             value = tuple(value)
         cfg = _set(cfg, path, value)
+    if "methods" not in settings:
+        cfg = replace(cfg, methods=default_methods(cfg.pal))
     cfg.check()
     return cfg

@@ -15,6 +15,9 @@ effects = [[], ["transition:alpha=0.3"]]
 methods = "oracle"
 ```
 
+``profile`` (``paper``, ``default``; ``none`` unless given: the configuration's own defaults)
+is what a cell's settings start from; every cell records it.
+
 A cell is identified by a hash of everything its results depend on (its whole config and both
 tables' contents), so a resumed sweep reuses a finished cell only if it would compute the same.
 """
@@ -32,6 +35,8 @@ from typing import Any
 from pac_host.errors import InputError
 from pac_host.experiments.experiment import ExperimentConfig
 from pac_host.experiments.sweep.settings import (
+    NO_PROFILE,
+    PROFILE,
     TABLE_SETTINGS,
     canonical_name,
     check_value,
@@ -126,7 +131,7 @@ def parse_sweep(doc: dict, base_dir: Path = Path("."), source: str = "sweep") ->
     seen: set[str] = set()
     for n, combo in enumerate(combos):
         where = f"{source} cell {n + 1}"
-        settings = _checked({**fixed, **combo}, where)
+        settings = _checked({PROFILE: NO_PROFILE, **fixed, **combo}, where)  # recorded
         cell = _resolve(len(cells), settings, base_dir, where)
         if cell.id not in seen:
             seen.add(cell.id)
