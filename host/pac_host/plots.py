@@ -5,6 +5,7 @@ Rendering uses matplotlib's Agg backend (files only, no display needed).
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -71,7 +72,9 @@ def mean_coverage(summary: dict, path: Path) -> Path:
     for method, m in comp.items():
         gens = next(r["generations"] for r in summary["runs"] if r["method"] == method)
         x, _ = progress_axis(summary["pal_config"]["search"], gens)
-        name = "oracle (perfect model)" if method == "oracle" else method
+        name = ("oracle (perfect model)" if method == "oracle"
+                else "PAL, model fitted" if method_title(method, summary["pal_config"])
+                != METHOD_TITLES.get(method) else method)
         ax.plot(x, m["mean_coverage"], lw=2, color=METHOD_COLOURS.get(method),
                 label=f"{name}: {m['reached_optimum']}/{m['seeds']} reached the optimum")
     _decorate(ax, summary, "Mean operational coverage over seeds")
@@ -79,10 +82,30 @@ def mean_coverage(summary: dict, path: Path) -> Path:
     return _save(fig, path)
 
 
+def _x_label(ax, label: str) -> None:
+    """The x axis's label; punctuations are counted, so their ticks are whole numbers."""
+    ax.set_xlabel(label)
+    if label == PUNCTUATION_AXIS:
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+
+
+def _wrapped(text: str, width: int) -> str:
+    """Each line of ``text`` folded to ``width`` characters, so a long title stays on the
+    figure; a turn cycle is never split.
+
+    >>> _wrapped("walked on the robot 29:9,19:36,23:20", 20)
+    'walked on the robot\n29:9,19:36,23:20'
+    """
+    return "\n".join(textwrap.fill(line, width, break_long_words=False, break_on_hyphens=False)
+                     for line in text.split("\n"))
+
+
 def _decorate(ax, summary: dict, title: str) -> None:
     ax.axhline(summary["optimum"], color="k", ls="--", lw=1,
                label="the experiment's optimum on the actual robot")
-    ax.set_xlabel(progress_axis(summary["pal_config"]["search"], ())[1])
+    _x_label(ax, progress_axis(summary["pal_config"]["search"], ())[1])
     ax.set_ylabel("coverage fitness on the actual robot (3R + c)")
     ax.set_title(title)
     ax.set_ylim(bottom=0, top=summary["optimum"] + 2)
@@ -175,7 +198,7 @@ def coverage_path(poses, blocks, path: Path, title: str = "Coverage path",
     if figures:
         title += (f"\ncovered {figures['blocks_covered']}, once {figures['blocks_covered_once']},"
                   f" fitness {figures['fitness']}")
-    ax.set_title(title, fontsize=9)
+    ax.set_title(_wrapped(title, 48), fontsize=9)
     return _save(fig, path)
 
 
@@ -193,13 +216,13 @@ def learning_progress(records: list[dict], path: Path, title: str = "Learning pr
             label="tested best turn cycle on the robot")
     ax.plot(gens, [r["predicted"][0]["fitness"] for r in records], "x", ms=5,
             label="same, predicted by the model")
-    ax.set_xlabel(x_label)
+    _x_label(ax, x_label)
     ax.set_ylabel("coverage fitness (3R + c)")
     ax2 = ax.twinx()
     ax2.plot(gens, [r["model_error_before"] for r in records], color="tab:gray", lw=1, ls=":",
              label="model error on the new tests")
     fitness = records[-1].get("model_fitness", "coverage") if records else "coverage"
-    ax2.set_ylabel(f"model error, {ERROR_UNITS[fitness]}", fontsize=7)
+    ax2.set_ylabel(_wrapped(f"model error, {ERROR_UNITS[fitness]}", 45), fontsize=7)
     lines = ax.get_legend_handles_labels()
     lines2 = ax2.get_legend_handles_labels()
     ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=7, loc="upper left")

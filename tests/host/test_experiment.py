@@ -89,6 +89,21 @@ def test_full_where_no_model_ga_runs_is_one_line_and_exit_2(tmp_path, methods):
     assert not (tmp_path / "log.jsonl").exists()
 
 
+def test_model_fitness_coverage_where_the_model_is_fitted_is_one_line_and_exit_2(tmp_path):
+    """--model-fitness would do nothing where the model is fitted to every observed step: it
+    is refused there, before anything is written, and taken under the paper profile."""
+    res = CliRunner().invoke(main, ["experiment", *SMALL, "--model-fitness", "coverage",
+                                    "--out", str(tmp_path)])
+    assert res.exit_code == 2, res.output
+    line, = res.output.strip().splitlines()
+    assert line.startswith("pac-host: error: --model-fitness coverage scores the model GA's")
+    assert "--profile paper or --correction ga" in line
+    assert not any(tmp_path.iterdir())
+    ok = CliRunner().invoke(main, ["experiment", *SMALL, "--correction", "ga",
+                                   "--model-fitness", "coverage", "--out", str(tmp_path / "ga")])
+    assert ok.exit_code == 0, ok.output
+
+
 def test_experiment_measures_against_the_best_known_on_a_built_in_robot(finished):
     """On the shifted robot at budget 200 robot time counts against the package's record (49),
     not the short run's own optimum; summary.json says which it used."""

@@ -90,8 +90,8 @@ def test_evolve_placement_default_follows_the_profile(tmp_path, monkeypatch):
     assert (f"model error {rec['model_error_before']} -> {rec['model_error_after']} blocks "
             "(sum of the six coverage differences)") in res.output
     assert seen["learning_progress.png"][0] == "CGA generation"
-    title = seen["coverage_path.png"][1]
-    assert title.startswith("punctuation 1: the model's best turn cycle, walked on the robot\n"
+    title = " ".join(seen["coverage_path.png"][1].split())  # folded to the figure's width
+    assert title.startswith("punctuation 1: the model's best turn cycle, walked on the robot "
                             f"{rec['tests'][0]} (")
     res = invoke("evolve", "--out", str(tmp_path / "x"), "--generations", "0", "--profile",
                  "paper", "--placement-error", "0.5,1", *args)
@@ -116,6 +116,10 @@ def test_the_default_profile_names_what_ran(tmp_path, monkeypatch):
                         "observed step); use --profile paper, or --model-generations N to run "
                         "the GA on top")
         assert not (tmp_path / method).exists()
+    res = invoke("evolve", "--out", str(tmp_path / "counts"), "--generations", "0",
+                 "--model-fitness", "coverage", *no_ga)
+    assert res.exit_code == 2 and not (tmp_path / "counts").exists()
+    assert res.output.strip().startswith("pac-host: error: --model-fitness coverage scores")
     seen = {}
     real = plots._save
 
@@ -132,7 +136,7 @@ def test_the_default_profile_names_what_ran(tmp_path, monkeypatch):
     assert (f"model error {rec['model_error_before']} -> {rec['model_error_after']} cm (RMS "
             "residual of the observed steps") in res.output
     assert seen["learning_progress.png"][0] == "punctuations (3 robot tests each)"
-    assert "model's best turn cycle" in seen["coverage_path.png"][1]
+    assert "model's best turn cycle" in " ".join(seen["coverage_path.png"][1].split())
 
 
 def test_robot_that_stops_answering_then_resume(baseline, tmp_path):

@@ -148,7 +148,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                                  placement=placement, search_models=search_models,
                                  search_chains=search_chains, explore=explore,
                                  kick_length_cost=kick_length_cost, shorten_after=shorten_after,
-                                 shapes=shapes))
+                                 shapes=shapes), paths_observed=observer_spec != "manual")
         from pac_host.learning.config import NO_MODEL_GA, RUN_THE_GA, recombination_inert
 
         if given("method") and observer_spec != "manual" and recombination_inert(learn):

@@ -186,10 +186,14 @@ def shapes_option(default: str | None = None):
 
 
 def profile_pal(profile: str, search_evaluations: int | None, model_generations: int | None,
-                options: dict, **fields):
+                options: dict, paths_observed: bool = True, **fields):
     """The PAL settings of a profile: ``fields`` under it, the profile's overrides, then those
     of ``options`` typed on the command line (the rest keep the profile's values), then the
-    search budget and the model GA generations (by the correction unless given)."""
+    search budget and the model GA generations (by the correction unless given).
+
+    A typed ``--model-fitness coverage`` where the model is fitted to every observed step is
+    refused: the fit scores steps whatever it says (``paths_observed`` False: an observer of
+    counts only, where the run falls back to the paper's model GA and the option matters)."""
     from dataclasses import replace
 
     from pac_host.learning import profiles
@@ -200,6 +204,12 @@ def profile_pal(profile: str, search_evaluations: int | None, model_generations:
     typed = {k: v for k, v in options.items()
              if getattr(src(k), "name", "") in ("COMMANDLINE", "ENVIRONMENT")}
     cfg = replace(cfg, **typed)
+    if (paths_observed and cfg.correction == "fit"
+            and typed.get("model_fitness", "steps") != "steps"):
+        raise InputError(f"--model-fitness {typed['model_fitness']} scores the model GA's "
+                         "models on block counts, and with --correction fit (the "
+                         f"{profile} profile's) the model is fitted to every observed step "
+                         "and scored on the steps; use --profile paper or --correction ga")
     if search_evaluations is not None:
         if cfg.search == "cga":
             raise InputError("--search-evaluations needs an anytime profile, not "
