@@ -96,7 +96,7 @@ def _wrapped(text: str, width: int) -> str:
     figure; a turn cycle is never split.
 
     >>> _wrapped("walked on the robot 29:9,19:36,23:20", 20)
-    'walked on the robot\n29:9,19:36,23:20'
+    'walked on the robot\\n29:9,19:36,23:20'
     """
     return "\n".join(textwrap.fill(line, width, break_long_words=False, break_on_hyphens=False)
                      for line in text.split("\n"))
