@@ -28,3 +28,19 @@ def upstream_vectors() -> Path:
 def data_dir() -> Path:
     """The reference data the repository carries."""
     return DATA
+
+
+@pytest.fixture
+def figure_labels(monkeypatch) -> dict:
+    """Each PNG the plots write, by file name: its first axes' x label and title, as saved."""
+    from pac_host import plots
+
+    seen: dict[str, tuple[str, str]] = {}
+    real = plots._save
+
+    def save(fig, path):
+        seen[path.name] = (fig.axes[0].get_xlabel(), fig.axes[0].get_title())
+        return real(fig, path)
+
+    monkeypatch.setattr(plots, "_save", save)
+    return seen

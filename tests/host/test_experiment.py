@@ -142,7 +142,7 @@ def test_best_known_follows_the_actual_robot_and_budget():
         "robot", "optimum": 30, "built_in": None, "given": None}
 
 
-def test_the_plots_name_what_ran(finished, monkeypatch, tmp_path):
+def test_the_plots_name_what_ran(finished, figure_labels, tmp_path):
     """The default profile runs no CGA between punctuations and no model GA: the curves are
     against punctuations and PAL is not called partial recombination; the paper's are
     against CGA generations."""
@@ -150,14 +150,7 @@ def test_the_plots_name_what_ran(finished, monkeypatch, tmp_path):
 
     out, _ = finished
     summary = json.loads((out / "summary.json").read_text())
-    seen = {}
-    real = plots._save
-
-    def save(fig, path):
-        seen[path.name] = (fig.axes[0].get_xlabel(), fig.axes[0].get_title())
-        return real(fig, path)
-
-    monkeypatch.setattr(plots, "_save", save)
+    seen = figure_labels
     plots.experiment_plots(summary, tmp_path)
     for name in ("coverage_partial.png", "coverage_oracle.png", "coverage_means.png"):
         assert seen[name][0] == "punctuations (3 robot tests each)", name

@@ -64,20 +64,12 @@ def test_evolve_writes_a_complete_log_and_the_model_error_falls(baseline):
     assert all(r["search"]["evaluations"] % 7 == 0 for r in log if "search" in r)
 
 
-def test_evolve_placement_default_follows_the_profile(tmp_path, monkeypatch):
+def test_evolve_placement_default_follows_the_profile(tmp_path, figure_labels):
     """The paper's CGA scores from the exact start: with --profile paper the default is none,
     and an explicit placement error is refused (exit 2). Its model GA takes --method; the log,
     the printed model error and the figures name what ran."""
-    from pac_host import plots
 
-    seen = {}
-    real = plots._save
-
-    def save(fig, path):
-        seen[path.name] = (fig.axes[0].get_xlabel(), fig.axes[0].get_title())
-        return real(fig, path)
-
-    monkeypatch.setattr(plots, "_save", save)
+    seen = figure_labels
     out = tmp_path / "paper"
     args = [a for a in SMALL if a not in ("--search-evaluations", "20000")]
     res = invoke("evolve", "--out", str(out), "--generations", "0", "--profile", "paper",
@@ -99,11 +91,10 @@ def test_evolve_placement_default_follows_the_profile(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_the_default_profile_names_what_ran(tmp_path, monkeypatch):
+def test_the_default_profile_names_what_ran(tmp_path, figure_labels):
     """The default fits the model to every observed step and runs no model GA: --method, which
     chooses the model GA's recombination, is refused in one line (exit 2), given either way;
     without it the run's log, printed model error and figures name the fit and the search."""
-    from pac_host import plots
 
     no_ga = [a for a in SMALL if a not in ("--model-generations", "15")]
     for method in ("full", "partial"):
@@ -120,14 +111,7 @@ def test_the_default_profile_names_what_ran(tmp_path, monkeypatch):
                  "--model-fitness", "coverage", *no_ga)
     assert res.exit_code == 2 and not (tmp_path / "counts").exists()
     assert res.output.strip().startswith("pac-host: error: --model-fitness coverage scores")
-    seen = {}
-    real = plots._save
-
-    def save(fig, path):
-        seen[path.name] = (fig.axes[0].get_xlabel(), fig.axes[0].get_title())
-        return real(fig, path)
-
-    monkeypatch.setattr(plots, "_save", save)
+    seen = figure_labels
     out = tmp_path / "fit"
     res = invoke("evolve", "--out", str(out), "--generations", "0", *no_ga)
     assert res.exit_code == 0, res.output
