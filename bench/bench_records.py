@@ -31,7 +31,7 @@ import learning_records
 
 SEED = 0  # the seed run again
 HERE = Path(__file__).resolve().parent
-CHECKS = ("test_records.py", "test_tools.py")
+CHECKS = ("test_records.py", "test_tools.py", "test_demo.py")
 
 
 def check() -> dict:

@@ -3,17 +3,10 @@ the Makefile, and compute the figures its targets are checked on from an evolve 
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
+import bench_demo  # bench/conftest.py puts bench/ on the path
 import pytest
-
-# loaded from its file: bench/ is not put on sys.path
-_SPEC = importlib.util.spec_from_file_location(
-    "bench_demo", Path(__file__).resolve().parents[2] / "bench" / "bench_demo.py")
-bench_demo = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(bench_demo)
 
 
 def test_the_demo_evolve_arguments_come_from_the_makefile(tmp_path):
