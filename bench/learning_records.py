@@ -5,7 +5,7 @@ runs the docs quote are kept in the repository (``bench/records/learning/ROBOT-M
 the complete runs of ``bench/bench_learning.py``'s ``log.jsonl``), with an index
 (``bench/records/learning.json``) of the commit and command that made each and the figures
 computed from it. The figures can then be checked without running PAL again
-(tests/host/test_learning_records.py recomputes them and walks every run's final turn cycle on
+(bench/test_records.py recomputes them and walks every run's final turn cycle on
 the robot), and a measurement stopped part way resumes in a fresh clone: ``bench_learning.py
 --records bench/records`` starts each robot from its record, running only the seeds it lacks.
 
@@ -174,7 +174,7 @@ BEGIN, END = "<!-- learning_records table -->", "<!-- end of learning_records ta
 
 def markdown(root: Path = RECORDS) -> str:
     """The records' figures as the table docs/results.md carries (between
-    :data:`BEGIN` and :data:`END`; tests/host/test_learning_records.py checks they match)."""
+    :data:`BEGIN` and :data:`END`; bench/test_records.py checks they match)."""
     head = ("| robot (best known) | seeds | 90% of the best known: seeds, median punctuations "
             "(robot hours; range) | 95% at the end | final mean (range) | later punctuations "
             "predicted exactly, median | commit |\n|---|---|---|---|---|---|---|\n")
