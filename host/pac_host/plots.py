@@ -162,9 +162,10 @@ def robot_time(summary: dict, path: Path) -> Path:
 
 
 def coverage_path(poses, blocks, path: Path, title: str = "Coverage path",
-                  figures: dict | None = None) -> Path:
+                  figures: dict | None = None, walks=None) -> Path:
     """The path on the area: 60 cm blocks with their mines, the body width at each detection,
-    found mines in green and missed ones in red."""
+    found mines in green and missed ones in red; ``walks`` (k, n + 1, 3), other walks of the
+    same turn cycle (a noisy robot's), drawn thin beneath it to show their spread."""
     import numpy as np
     from matplotlib.patches import Rectangle
 
@@ -172,7 +173,9 @@ def coverage_path(poses, blocks, path: Path, title: str = "Coverage path",
 
     poses = np.asarray(poses)
     blocks = np.asarray(blocks)
-    top_row = max(int(max(poses[:, 1].max(), 0) // BLOCK_CM) + 1, 3)
+    walks = np.empty((0,) + poses.shape) if walks is None else np.asarray(walks)
+    top_y = max(poses[:, 1].max(), walks[..., 1].max(initial=0.0), 0)
+    top_row = max(int(top_y // BLOCK_CM) + 1, 3)
     height_cm = top_row * BLOCK_CM + 30
     fig, ax = plt.subplots(figsize=(4.2, min(1.2 + 3.6 * height_cm / 220, 16)), dpi=110)
     found = set(blocks[blocks >= 0].tolist())
@@ -183,6 +186,8 @@ def coverage_path(poses, blocks, path: Path, title: str = "Coverage path",
             hit = r * COLUMNS + c in found
             ax.plot((c + 0.5) * BLOCK_CM, (r + 0.5) * BLOCK_CM, marker="*", ms=9,
                     color="tab:green" if hit else "tab:red", zorder=3)
+    for w in walks:
+        ax.plot(w[:, 0], w[:, 1], "-", color="tab:gray", lw=0.4, alpha=0.5, zorder=1)
     ax.plot(poses[:, 0], poses[:, 1], "-", color="tab:blue", lw=1, zorder=2)
     det = blocks >= 0
     rad = np.radians(poses[det, 2])

@@ -76,7 +76,7 @@ def build_config(**o: object) -> SimConfig:
         mute_after=o["mute_after"],
         seed=o["seed"],
         eeprom=o["eeprom"],
-        table=load_with_effects(o["table_spec"], o["effect_specs"]),
+        table=load_with_effects(o["table_spec"], o["effect_specs"], o["step_noise"]),
         start=(x, y, h),
         tracker_noise=(pos, head),
         tracker=parse_tracker(o["tracker"]),
@@ -124,6 +124,10 @@ def _report_downloads(stamp: object, seen: int) -> int:
               help="The robot's true gait table: measured, shifted or a table file.")
 @click.option("--effect", "effect_specs", multiple=True, metavar="NAME:P=V,...",
               help="Add an unmodelled effect, e.g. transition:alpha=0.3 (repeatable).")
+@click.option("--step-noise", default=None, metavar="CM,DEG|none",
+              help="Each executed gait cycle's move varies by these standard deviations, cm "
+                   "on F and T, deg on dH (seeded by --seed; not given: the table file's, if "
+                   "any; none: no noise).")
 @click.option("--effects-module", multiple=True, metavar="FILE.py", is_eager=True,
               expose_value=False, callback=_load_modules,
               help="Python file defining effects with pac_host.model.effects.register_effect "

@@ -1,7 +1,8 @@
 """The simulated world: where the robot really is after each gait cycle.
 
-The pose advances with a true gait table plus unmodelled effects through the model's own
-``step_moves``/``integrate`` (the one definition of kinematics); observers (the tracker feed)
+The pose advances with a true gait table plus unmodelled effects and the table's step noise
+through the model's own ``noisy_step_moves``/``integrate`` (the one definition of
+kinematics); observers (the tracker feed)
 receive the pose seen by an overhead camera, with Gaussian noise from a seeded generator.
 """
 
@@ -14,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pac_host.coverage import START_POSE  # the paper's start pose
-from pac_host.model import Effect, GaitTable, integrate, step_moves
+from pac_host.model import Effect, GaitTable, integrate
+from pac_host.model.step_noise import noisy_step_moves
 
 
 @dataclass(frozen=True)
@@ -42,8 +44,9 @@ class World:
         self.pose = np.asarray(start, dtype=np.float64).copy()
         self.noise = noise
         rng = rng if rng is not None else np.random.default_rng(0)
-        # the first two streams are the tracker's; the third is a random effect's (a stall ...)
-        self._cycle_rng, self._snap_rng, self._effect_rng = rng.spawn(3)
+        # the first two streams are the tracker's; the third is a random effect's (a stall ...);
+        # the fourth the table's step noise (spawned last: without noise no other draw changes)
+        self._cycle_rng, self._snap_rng, self._effect_rng, self._step_rng = rng.spawn(4)
         self.seq = 0
         self.power_on = 0
         self.history: list[PoseSample] = []
@@ -58,9 +61,9 @@ class World:
     def advance(self, gait: int, n0: int, prev_gait: int | None) -> PoseSample:
         """Execute one gait cycle. ``n0``: cycles since power-on before it; ``prev_gait``: the
         gait just before it in the same run (None at a run's start)."""
-        body, drift = step_moves(
-            self.table.rows, np.array([gait]), self.effects, n0=n0, prev_gait=prev_gait,
-            rng=self._effect_rng,
+        body, drift = noisy_step_moves(
+            self.table.rows, np.array([gait]), self.effects, self.table.step_noise,
+            self._step_rng, n0=n0, prev_gait=prev_gait, effect_rng=self._effect_rng,
         )
         with self._lock:
             self.pose = integrate(self.pose, body, drift)[-1]
@@ -89,8 +92,8 @@ class World:
             self.pose = np.asarray(pose, dtype=np.float64).copy()
             if noise_seed is not None:
                 seq = np.random.SeedSequence(noise_seed)
-                self._cycle_rng, self._snap_rng, self._effect_rng = (
-                    np.random.default_rng(s) for s in seq.spawn(3))
+                self._cycle_rng, self._snap_rng, self._effect_rng, self._step_rng = (
+                    np.random.default_rng(s) for s in seq.spawn(4))
             return self._observe(self._snap_rng)
 
     def snapshot(self) -> PoseSample:

@@ -113,6 +113,8 @@ def test_bad_arguments_exit_2_before_touching_the_port(args, words):
         (["--effect", "nope:x=1"], "unknown effect"),
         (["--firmware", "/nonexistent/fw.bs2"], "/nonexistent/fw.bs2: cannot read"),
         (["--image", "servobot.json"], "give --firmware SOURCE too"),
+        (["--step-noise", "-0.3,1"], "deviations must be >= 0"),
+        (["--step-noise", "0.3"], "--step-noise takes CM,DEG"),
     ],
 )
 def test_pac_sim_bad_options_are_one_line(args, words):

@@ -24,6 +24,7 @@ from pac_host.cli.options import (
     search_models_option,
     shapes_option,
     shorten_after_option,
+    step_noise_option,
 )
 from pac_host.cli.progress import Progress, quiet_option
 from pac_host.cli.resume import options_doc, resumable
@@ -75,6 +76,10 @@ _PAL_OPTIONS = ("model_fitness", "correction", "structure", "tests", "operationa
               help="The simulated actual robot: a built-in table or a pac-gait-table/1 file "
                    "(its effects included).")
 @effect_option()
+@step_noise_option("The actual robot's step noise: each executed gait cycle's move varies "
+                   "by these standard deviations, cm on F and T, deg on dH, drawn from the "
+                   "run's seed (not given: the --actual file's, if any; none: no noise); the "
+                   "model the learner starts from stays noise-free.")
 @effects_module_option()
 @click.option("--model", "model_spec", default="measured", show_default=True,
               metavar="measured|shifted|FILE", help="The model the CGA starts on.")
@@ -122,7 +127,7 @@ _PAL_OPTIONS = ("model_fitness", "correction", "structure", "tests", "operationa
 @resumable("out_dir", "config.json", CONFIG_FORMAT, "an experiment run",
            normalise=lambda n, v: _normalise(n, v))
 def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual_spec,
-                   effect_specs, model_spec, model_fitness, budget, initial_generations,
+                   effect_specs, step_noise, model_spec, model_fitness, budget, initial_generations,
                    optimum_runs, optimum_generations, optimum_evaluations, best_known,
                    model_generations, correction, structure, tests, operational, placement, profile,
                    search_evaluations, search_models, search_chains, explore, kick_length_cost,
@@ -172,7 +177,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
         pal=learn,
     )
     cfg.check()  # before tables and workers: e.g. full where no model GA runs
-    actual = load_with_effects(actual_spec, effect_specs)
+    actual = load_with_effects(actual_spec, effect_specs, step_noise)
     model = resolve_table(model_spec)
     user = [e.name for e in (*actual.effects, *model.effects) if e.name not in BUILT_IN]
     if scheduler and user:  # a cluster's workers import the project, not the user's file
@@ -207,7 +212,8 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
     for m, s in rt["methods"].items():
         med = s["median_punctuations_to_target"]
         click.echo(f"{m:>8}: reached the target on {s['reached_target']}/{s['seeds']} seeds, "
-                   f"median {med if med is not None else 'not reached'} punctuations"
+                   + (f"median {med} punctuations" if med is not None
+                      else "median punctuations: not reached")
                    + (f" ({s['median_robot_hours_to_target']:.1f} robot hours)"
                       if s["median_robot_hours_to_target"] is not None else "")
                    + f"; ended at {rt['final_target']:.0%} on {s['ended_at_final_target']}/"

@@ -33,6 +33,10 @@ OPTIONS = [
     effects_module_option(),
     click.option("--sim-noise", default="0.5,1", show_default=True, metavar="POS_CM,HEAD_DEG",
                  help="Emulator: standard deviation of the tracker's noise."),
+    click.option("--sim-step-noise", default=None, metavar="CM,DEG|none",
+                 help="Emulator: each executed gait cycle's move varies by these standard "
+                      "deviations, cm on F and T, deg on dH (seeded per run; not given: the "
+                      "--sim-table file's, if any)."),
     click.option("--sim-realtime", default=0.0, show_default=True, type=float,
                  metavar="FACTOR", help="Emulator: wall time per emulated second (1 = real)."),
     click.option("--sim-seed", default=0, show_default=True, type=Bounded(limits.SEED),
@@ -57,8 +61,8 @@ def link_options(f):
     return f
 
 
-SIM_NAMES = ("sim_table", "sim_effects", "sim_noise", "sim_realtime", "sim_seed", "drop_prob",
-             "corrupt_prob", "drop_at", "corrupt_at", "mute_after")
+SIM_NAMES = ("sim_table", "sim_effects", "sim_noise", "sim_step_noise", "sim_realtime",
+             "sim_seed", "drop_prob", "corrupt_prob", "drop_at", "corrupt_at", "mute_after")
 
 
 def emulator_options(o: dict, port: str | None) -> EmulatorOptions | None:
@@ -77,8 +81,13 @@ def emulator_options(o: dict, port: str | None) -> EmulatorOptions | None:
         pos, head = (float(v) for v in noise_text.split(","))
     except ValueError:
         raise InputError(f"--sim-noise: expected POS_CM,HEAD_DEG, got {noise_text!r}") from None
+    step_noise = o.pop("sim_step_noise")
+    try:
+        table = load_with_effects(o.pop("sim_table"), o.pop("sim_effects"), step_noise)
+    except InputError as e:  # parse_step_noise names the option --step-noise
+        raise InputError(str(e).replace("--step-noise", "--sim-step-noise", 1)) from None
     return EmulatorOptions(
-        table=load_with_effects(o.pop("sim_table"), o.pop("sim_effects")),
+        table=table,
         noise=(pos, head), realtime=o.pop("sim_realtime"), seed=o.pop("sim_seed"),
         drop_prob=o.pop("drop_prob"), corrupt_prob=o.pop("corrupt_prob"),
         drop_at=tuple(o.pop("drop_at")), corrupt_at=tuple(o.pop("corrupt_at")),

@@ -67,6 +67,14 @@ def placement_option(default: str | None = "none", shown: str | bool = True,
         metavar="POS_CM,HEAD_DEG|none", help=help)
 
 
+def step_noise_option(help: str, name: str = "--step-noise"):
+    """``--step-noise CM,DEG``: each executed gait cycle's move varies by these standard
+    deviations (cm on F and T, deg on dH; :mod:`pac_host.model.step_noise`); not given: the
+    table file's (none for a built-in table)."""
+    return click.option(name, name.lstrip("-").replace("-", "_"), default=None,
+                        metavar="CM,DEG|none", help=help)
+
+
 def placed_text(placed: dict, error) -> str:
     """How the commands print a turn cycle's fitness from drawn start poses
     (:func:`pac_host.coverage.placement.summary` of walks drawn with ``error``, a

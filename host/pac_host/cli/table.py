@@ -10,6 +10,7 @@ from pac_host.cli.options import (
     effect_option,
     effects_module_option,
     load_with_effects,
+    step_noise_option,
     table_option,
 )
 from pac_host.model.table import COMPONENTS, save_table, side, strength
@@ -39,16 +40,21 @@ def show(table_spec: str, effect_specs: tuple[str, ...]) -> None:
         click.echo(f"{gid:>3} {turn:>5} {strength(gid):>3} {vals}")
     for e in table.effects:
         click.echo(f"effect: {e}")
+    if not table.step_noise.is_zero():
+        click.echo(f"step noise: {table.step_noise.to_text()} (cm on F and T, deg on dH)")
 
 
 @table_group.command("export")
 @click.argument("path", type=click.Path(dir_okay=False, path_type=Path))
 @table_option()
 @effect_option()
+@step_noise_option("Write this step noise into the file (cm on F and T, deg on dH; not "
+                   "given: the table's own, if any; none: no noise).")
 @effects_module_option()
-def export(path: Path, table_spec: str, effect_specs: tuple[str, ...]) -> None:
+def export(path: Path, table_spec: str, effect_specs: tuple[str, ...],
+           step_noise: str | None) -> None:
     """Write a table as a pac-gait-table/1 JSON file to PATH."""
-    table = load_with_effects(table_spec, effect_specs)
+    table = load_with_effects(table_spec, effect_specs, step_noise)
     save_table(table, path)
     click.echo(f"wrote {path} ({table.name}, {len(table.effects)} effects)")
 

@@ -43,8 +43,9 @@ from pac_host.model.table import GaitTable, measured_table, shifted_table
 from pac_host.search import cga
 from pac_host.search.optimize import OptimizeConfig, run_chain
 
-# seed streams; STAGE_PLACED draws the start poses a run's final turn cycle is walked from
-STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED = 0, 1, 2, 3
+# seed streams; STAGE_PLACED draws the start poses a run's final turn cycle is walked from,
+# STAGE_STEPS the actual robot's step noise in a run's tests (the same for each method of a seed)
+STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED, STAGE_STEPS = 0, 1, 2, 3, 4
 METHODS = ("full", "partial", "oracle")
 # the optimum search's evaluations per run for the paper's 1000 generations; shorter runs get
 # proportionately fewer (optimum_evaluations_for), down to the floor
@@ -165,7 +166,7 @@ def pal_run(
         model = actual
     pcfg = pal.PALConfig(**fields)
     rng = _rng(cfg.base_seed, seed, STAGE_PAL)
-    robot = pal.SimulatedRobot(actual, pcfg.budget)
+    robot = pal.SimulatedRobot(actual, pcfg.budget, rng=_rng(cfg.base_seed, seed, STAGE_STEPS))
     state = pal.initial_state(model, rng, pcfg, init_pop)
     curve: list[tuple[int, int]] = []
     seconds: list[float] = []
@@ -470,7 +471,9 @@ def run_experiment(
         "config": {**asdict(cfg), "pal": None, "methods": list(cfg.methods)},
         "pal_config": asdict(cfg.pal),
         "model": model.name,
-        "actual": {"name": actual.name, "effects": [e.to_json() for e in actual.effects]},
+        "actual": {"name": actual.name, "effects": [e.to_json() for e in actual.effects],
+                   **({} if actual.step_noise.is_zero()
+                      else {"step_noise": actual.step_noise.to_json()})},
         "optimum": optimum,
         "runs": results,
         "comparison": compare(results, cfg, optimum),

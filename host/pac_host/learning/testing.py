@@ -12,7 +12,7 @@ cycles each punctuation tests (:func:`choose_tests`, from the CGA's best and
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -25,6 +25,7 @@ from pac_host.coverage import (
     coverage_score,
     simulate,
 )
+from pac_host.coverage.walks import noisy_walks
 from pac_host.learning import test_selection
 from pac_host.learning.config import PALConfig
 from pac_host.learning.state import PALState
@@ -74,15 +75,28 @@ def results_from_coverage(cov: Coverage) -> list[TestResult]:
 
 @dataclass
 class SimulatedRobot:
-    """The paper's simulated actual robot: a true table (with its effects) in the simulator."""
+    """The paper's simulated actual robot: a true table (with its effects) in the simulator.
+
+    A table with step noise walks each test with fresh noise drawn from ``rng`` (required
+    then), so its observed poses are the noisy path; without, exactly ``simulate``'s walk."""
 
     table: GaitTable
     budget: int = DEFAULT_BUDGET
     start_pose: Sequence[float] = START_POSE
+    rng: np.random.Generator | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if not self.table.step_noise.is_zero() and self.rng is None:
+            raise ValueError("a robot with step noise needs a Generator (rng) to draw it from")
 
     def run_tests(self, tests: np.ndarray) -> list[TestResult]:
-        cov = simulate(self.table.rows, tests, self.budget, self.table.effects, self.start_pose,
-                       keep_paths=True)
+        t = self.table
+        if t.step_noise.is_zero():
+            cov = simulate(t.rows, tests, self.budget, t.effects, self.start_pose,
+                           keep_paths=True)
+        else:
+            cov = noisy_walks(t.rows, tests, self.budget, t.effects, t.step_noise, self.rng,
+                              self.start_pose, keep_paths=True)
         return results_from_coverage(cov)
 
 

@@ -19,16 +19,23 @@ True
 >>> d = n.draw(np.array([12, 12, 3]), np.random.default_rng(0))
 >>> d.shape
 (3, 3)
+>>> from pac_host.model.table import measured_table
+>>> body, _ = noisy_step_moves(measured_table().rows, np.array([12, 12]), (), n,
+...                            np.random.default_rng(0))
+>>> bool((body != measured_table().rows[[12, 12]]).all())
+True
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from pac_host.errors import InputError
+from pac_host.model.effects import Effect, step_moves
 
 N_IDS = 32
 # Larger deviations describe no walking robot (a gait cycle moves at most about 12 cm and
@@ -126,17 +133,46 @@ def step_noise_from_json(doc: object, source: str = "step_noise") -> StepNoise:
     ``{"per_cycle": [[F, T, dH], ...32]}``."""
     if not isinstance(doc, dict):
         raise InputError(f"{source}: must be an object like {{\"F\": 0.3, \"T\": 0.3, \"dH\": 1}}")
-    try:
-        if "per_cycle" in doc:
-            sd = np.array(doc["per_cycle"], dtype=np.float64)
-            if sd.shape != (N_IDS, 3):
-                raise InputError(f"{source}: per_cycle must be 32 rows of [F, T, dH]")
-        else:
-            missing = [k for k in ("F", "T", "dH") if k not in doc]
-            if missing:
-                raise InputError(f"{source}: missing {', '.join(missing)}")
-            sd = np.array([doc["F"], doc["T"], doc["dH"]], dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{source}: deviations must be numbers") from None
+    if "per_cycle" in doc:
+        rows = doc["per_cycle"]
+        if not (isinstance(rows, list) and len(rows) == N_IDS
+                and all(isinstance(r, list) and len(r) == 3 for r in rows)):
+            raise InputError(f"{source}: per_cycle must be 32 rows of [F, T, dH]")
+        values = [v for r in rows for v in r]
+    else:
+        missing = [k for k in ("F", "T", "dH") if k not in doc]
+        if missing:
+            raise InputError(f"{source}: missing {', '.join(missing)}")
+        values = [doc["F"], doc["T"], doc["dH"]]
+    if any(isinstance(v, bool) or not isinstance(v, int | float) for v in values):
+        raise InputError(f"{source}: deviations must be numbers")
+    sd = np.array(values, dtype=np.float64).reshape(-1, 3)
+    sd = sd[0] if "per_cycle" not in doc else sd
     check_deviations(sd, source)
     return StepNoise(sd)
+
+
+def noisy_step_moves(
+    rows: np.ndarray,
+    gait_ids: np.ndarray,
+    effects: Sequence[Effect],
+    noise: StepNoise,
+    rng: np.random.Generator | None,
+    n0: int | np.ndarray = 0,
+    prev_gait: int | None = None,
+    effect_rng: np.random.Generator | None = None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The moves a robot really makes on a run: :func:`~pac_host.model.effects.step_moves`
+    (body (..., n, 3), world drift or None; ``n0``, ``prev_gait`` and ``effect_rng`` as there)
+    with one draw of ``noise`` from ``rng`` added to each executed gait cycle's body move.
+
+    The one place a noisy move is drawn (the experiment's robot, the emulator's world,
+    ``simulate --walks``). Zero noise draws nothing: step_moves' moves value for value.
+    """
+    gait_ids = np.asarray(gait_ids)
+    body, world = step_moves(rows, gait_ids, effects, n0, prev_gait, effect_rng)
+    if noise.is_zero():
+        return body, world
+    if rng is None:
+        raise ValueError("step noise needs a Generator to draw from")
+    return body + noise.draw(gait_ids, rng), world

@@ -23,6 +23,7 @@ import numpy as np
 
 from pac_host.errors import InputError
 from pac_host.files import write_atomic
+from pac_host.model.step_noise import NONE, StepNoise, parse_step_noise, step_noise_from_json
 
 FORMAT = "pac-gait-table/1"
 N_IDS = 32
@@ -53,11 +54,13 @@ def strength(gait_id: int | np.ndarray) -> int | np.ndarray:
 
 @dataclass(frozen=True)
 class GaitTable:
-    """A gait table (32 x 3 float array) plus the unmodelled effects the robot also shows."""
+    """A gait table (32 x 3 float array) plus the unmodelled effects the robot also shows, and
+    its step noise (:mod:`pac_host.model.step_noise`; none by default)."""
 
     rows: np.ndarray
     effects: tuple = field(default=())
     name: str = "table"
+    step_noise: StepNoise = NONE
 
     def __post_init__(self) -> None:
         rows = np.array(self.rows, dtype=np.float64)
@@ -70,10 +73,13 @@ class GaitTable:
         object.__setattr__(self, "effects", tuple(self.effects))
 
     def with_rows(self, rows: np.ndarray, name: str | None = None) -> GaitTable:
-        return GaitTable(rows, self.effects, name or self.name)
+        return GaitTable(rows, self.effects, name or self.name, self.step_noise)
 
     def with_effects(self, effects, name: str | None = None) -> GaitTable:
-        return GaitTable(self.rows, tuple(effects), name or self.name)
+        return GaitTable(self.rows, tuple(effects), name or self.name, self.step_noise)
+
+    def with_step_noise(self, noise: StepNoise) -> GaitTable:
+        return GaitTable(self.rows, self.effects, self.name, noise)
 
     def to_json(self) -> dict:
         doc: dict = {
@@ -85,6 +91,8 @@ class GaitTable:
         }
         if self.effects:
             doc["effects"] = [e.to_json() for e in self.effects]
+        if not self.step_noise.is_zero():
+            doc["step_noise"] = self.step_noise.to_json()
         return doc
 
 
@@ -140,7 +148,9 @@ def table_from_json(doc: object, source: str = "table") -> GaitTable:
     if not isinstance(effects, list):
         raise InputError(f"{source}: 'effects' must be a list")
     effs = tuple(effect_from_json(e, f"{source}: effects[{k}]") for k, e in enumerate(effects))
-    return GaitTable(rows, effs, name=Path(source).stem)
+    noise = (step_noise_from_json(doc["step_noise"], f"{source}: step_noise")
+             if "step_noise" in doc else NONE)
+    return GaitTable(rows, effs, name=Path(source).stem, step_noise=noise)
 
 
 def load_table(path: str | Path) -> GaitTable:
@@ -169,8 +179,10 @@ def resolve_table(spec: str) -> GaitTable:
     return load_table(spec)
 
 
-def load_with_effects(table_spec: str, effect_specs: Sequence[str] = ()) -> GaitTable:
-    """Resolve a table and add effects given as ``name:param=value,...`` to the table's own."""
+def load_with_effects(table_spec: str, effect_specs: Sequence[str] = (),
+                      step_noise: str | None = None) -> GaitTable:
+    """Resolve a table and add effects given as ``name:param=value,...`` to the table's own;
+    ``step_noise`` (``CM,DEG`` or ``none``), when given, replaces the table's."""
     from pac_host.model.effects import parse_effect
 
     table = resolve_table(table_spec)
@@ -179,4 +191,6 @@ def load_with_effects(table_spec: str, effect_specs: Sequence[str] = ()) -> Gait
     dup = {n for n in names if names.count(n) > 1}
     if dup:
         raise InputError(f"effect {sorted(dup)[0]} given twice")
+    if step_noise is not None:
+        table = table.with_step_noise(parse_step_noise(step_noise))
     return table.with_effects(tuple(table.effects) + tuple(extra)) if extra else table
