@@ -181,6 +181,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            library_restarts=learn.library_restarts,
                            finish_moves=learn.finish_moves,
                            refine_effects=learn.refine_effects,
+                           operational_evidence=learn.operational_evidence,
                            shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)
@@ -199,18 +200,41 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
             click.echo(f"generation {rec['generation']}: tests {figs} on the robot (fitness); "
                        f"model error {rec['model_error_before']} -> {rec['model_error_after']} "
                        f"{ERROR_UNITS[rec['model_fitness']]}; "
-                       f"operational {rec['operational']} fitness {rec['operational_fitness']}")
+                       f"operational {rec['operational']} {operational_figure(rec)}")
 
         with Progress("evolve", quiet, minor=("tests", "gait cycles"),
                       minor_every=30.0) as progress:
             last = evolve(root, cfg, conn, resume=resume_dir is not None, on_punctuation=show,
                           progress=progress)
     if last:
-        click.echo(f"operational turn cycle {last['operational']} (fitness "
-                   f"{last['operational_fitness']} on the robot); files in {root}")
+        click.echo(f"operational turn cycle {last['operational']} ("
+                   f"{operational_figure(last)} on the robot); files in {root}")
         rec = recovery_summary(root)
         if rec:
             click.echo(describe_counts(rec))
+
+
+def operational_figure(rec: dict) -> str:
+    """The operational turn cycle's figure of a punctuation record: its walk's fitness, and
+    where step noise is estimated above zero, that it is one walk and the expectation with
+    its interval and the walks behind it.
+
+    >>> operational_figure({"operational_fitness": 45})
+    'fitness 45'
+    >>> operational_figure({"operational_fitness": 45, "step_noise": {"clear": True},
+    ...     "operational_estimate": {"mean": 22.4, "interval": [19.1, 25.7], "walks": 6}})
+    'fitness 45 (one walk), expected 22.4 [19.1, 25.7] over 6 walks'
+    """
+    fit = f"fitness {rec['operational_fitness']}"
+    est = rec.get("operational_estimate")
+    if not (rec.get("step_noise") or {}).get("clear") or not est:
+        return fit
+    n = est["walks"]
+    over = f"over {n} walk{'s' if n != 1 else ''}"
+    if est.get("interval") is None:
+        return f"{fit} (one walk), mean {est['mean']:g} {over}"
+    lo, hi = est["interval"]
+    return f"{fit} (one walk), expected {est['mean']:g} [{lo:g}, {hi:g}] {over}"
 
 
 def _saved_options(cfg: EvolveConfig, port: str | None) -> dict[str, object]:
@@ -265,8 +289,10 @@ def _spec(table: str) -> str:
 def _robot(port: str | None, observer: str | None, sim: dict) -> dict:
     if port is not None:
         return {"port": port, "observer": observer}
+    step = {} if sim["sim_step_noise"] is None else {"sim_step_noise": sim["sim_step_noise"]}
     return {"emulator": {"sim_table": _spec(sim["sim_table"]),
-                         "sim_effects": list(sim["sim_effects"]), "sim_noise": sim["sim_noise"]}}
+                         "sim_effects": list(sim["sim_effects"]), "sim_noise": sim["sim_noise"],
+                         **step}}
 
 
 def register(main: click.Group) -> None:

@@ -27,12 +27,15 @@ segments at all it falls back on the rms of the model's one-step residuals (an u
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
-from pac_host.diagnose.residuals import Batch
+from pac_host.diagnose.residuals import Batch, batch_of
+from pac_host.diagnose.runs import Run
+from pac_host.model.step_noise import StepNoise
 
 MIN_REPEATS = 40
 FLOOR = 1e-3  # smallest sigma used, so noise-free synthetic data still whitens
@@ -131,6 +134,19 @@ def _fit(sh, ah, sp, ap, wp) -> tuple[float, float, float, float]:
     return var_h, qh, var_p, qp
 
 
+def _fit_with_errors(m: tuple[np.ndarray, ...]) -> tuple[tuple[float, ...], np.ndarray]:
+    """:func:`_fit` over all segments' moments ``m`` and the jackknife standard errors (4,) of
+    its four variances (segments in up to 20 groups; inf with fewer than 3)."""
+    fit = _fit(*m)
+    k = len(m[0])
+    groups = np.arange(k) % min(20, k)
+    g = int(groups.max()) + 1
+    if g < 3:
+        return fit, np.full(4, np.inf)
+    jack = np.array([_fit(*(a[groups != j] for a in m)) for j in range(g)])
+    return fit, np.sqrt((g - 1) / g * ((jack - jack.mean(axis=0)) ** 2).sum(axis=0))
+
+
 def _solve_fixed(b: np.ndarray, a: np.ndarray, with_step: bool) -> tuple[float, float]:
     """Both variances, or the tracker variance alone (step variance 0) by least squares."""
     if with_step:
@@ -150,14 +166,7 @@ def estimate_noise(batch: Batch, residuals: np.ndarray | None = None) -> NoiseFl
     n_used = sum(n for _, _, n in segs)
     if segs:
         m = _moments(batch, segs)
-        var_h, qh, var_p, qp = _fit(*m)
-        groups = np.arange(len(segs)) % min(20, len(segs))
-        g = int(groups.max()) + 1
-        if g >= 3:
-            jack = np.array([_fit(*(a[groups != k] for a in m)) for k in range(g)])
-            se = np.sqrt((g - 1) / g * ((jack - jack.mean(axis=0)) ** 2).sum(axis=0))
-        else:
-            se = np.full(4, np.inf)
+        (var_h, qh, var_p, qp), se = _fit_with_errors(m)
         if qh <= STEP_Z * se[1] or qp <= STEP_Z * se[3]:
             # refit with the step noise that is not clear set to zero
             keep_h, keep_p = qh > STEP_Z * se[1], qp > STEP_Z * se[3]
@@ -174,3 +183,86 @@ def estimate_noise(batch: Batch, residuals: np.ndarray | None = None) -> NoiseFl
     head = float(np.sqrt((flat[:, 2] ** 2).mean() / 2.0))
     return NoiseFloor(max(pos, FLOOR), max(head, FLOOR), "residual_rms_upper_bound",
                       int(batch.mask.sum()), False)
+
+
+Z95 = 1.959964  # the two-sided 95% normal quantile
+MIN_STEP_CM = 0.01  # step noise below these moves no path off a block: taken as none
+MIN_STEP_DEG = 0.05
+CLEAR_Z = 3.29  # one-sided 1 in 2000: step noise to decide by, not a noisy tracker's chance
+
+
+@dataclass(frozen=True)
+class StepNoiseFit:
+    """The robot's step noise estimated from observed runs (:func:`estimate_step_noise`):
+    per component F, T (cm, pooled: the estimator sees them alike) and dH (deg), the point
+    estimate ``value`` (3,), the jackknife standard error of its variance ``var_se`` (3,) and
+    the 95% interval (3, 2) on the deviation; ``n_used`` repeated steps behind it."""
+
+    value: np.ndarray
+    var_se: np.ndarray
+    interval: np.ndarray
+    n_used: int
+
+    @property
+    def noise(self) -> StepNoise:
+        """The estimate as a :class:`StepNoise`, uniform over gait cycles."""
+        return StepNoise(self.value)
+
+    def clear(self) -> bool:
+        """Whether the robot is noisy on this evidence: some component's variance more than
+        :data:`CLEAR_Z` standard errors above zero and its deviation above the
+        :data:`MIN_STEP_CM` / :data:`MIN_STEP_DEG` floor. A noise-free robot gives False, a
+        noisy tracker alone almost never True (the 95% interval alone would, one time in
+        twenty): decisions change only on noise that is there."""
+        floor = np.array([MIN_STEP_CM, MIN_STEP_CM, MIN_STEP_DEG])
+        return bool(((self.value**2 > CLEAR_Z * self.var_se) & (self.value >= floor)).any())
+
+    def decided(self) -> StepNoise:
+        """The noise to decide with: the estimate when :meth:`clear`, else none."""
+        return self.noise if self.clear() else StepNoise(np.zeros(3))
+
+    def to_json(self) -> dict:
+        """``{"F": {"value", "interval"}, "T": ..., "dH": ..., "n_used", "clear"}``."""
+        out: dict = {c: {"value": round(float(v), 4),
+                         "interval": [round(float(lo), 4), round(float(hi), 4)]}
+                     for c, v, (lo, hi) in zip(("F", "T", "dH"), self.value, self.interval,
+                                               strict=True)}
+        return {**out, "n_used": self.n_used, "clear": self.clear()}
+
+
+def estimate_step_noise(runs: Sequence[Run], start_observed: bool = False
+                        ) -> StepNoiseFit | None:
+    """The robot's step noise from observed runs: :func:`estimate_noise`'s moments of repeated
+    identical steps (which tell the tracker's noise, shared by consecutive steps, from the
+    robot's own, independent per step), without its keep-or-drop test, with a 95% interval.
+
+    No model is needed: within a stretch of one gait cycle repeated every table and sequence
+    effect moves the robot alike, and a model's residuals would count its row errors as noise.
+    Each run's first step is left out unless ``start_observed`` (a start pose put down by hand
+    is not an observation of the tracker). The interval is on the variance, value +- 1.96
+    jackknife standard errors clipped at zero, then its square root; None: no repeated steps.
+
+    >>> from pac_host.diagnose.runs import Run
+    >>> ids = np.array([12] * 30)
+    >>> poses = np.cumsum(np.tile([[0.0, 10.0, 0.0]], (30, 1)), axis=0)
+    >>> fit = estimate_step_noise([Run(str(i), np.zeros(3), ids, poses) for i in range(4)])
+    >>> fit.value.tolist(), fit.clear()
+    ([0.0, 0.0, 0.0], False)
+    """
+    if not start_observed:
+        runs = [Run(r.run_id, r.poses[0], r.gait_cycles[1:], r.poses[1:],
+                    r.cycles_since_power_on + 1) for r in runs if r.n >= 2]
+    runs = [r for r in runs if r.n > 0]
+    if not runs:
+        return None
+    batch = batch_of(runs)
+    segs = segments(batch)
+    if not segs:
+        return None
+    (_, qh, _, qp), se = _fit_with_errors(_moments(batch, segs))
+    var = np.array([qp, qp, qh])
+    var_se = np.array([se[3], se[3], se[1]])
+    lo = np.sqrt(np.clip(var - Z95 * var_se, 0.0, None))
+    hi = np.sqrt(np.clip(var + Z95 * var_se, 0.0, None))
+    return StepNoiseFit(np.sqrt(var), var_se, np.stack([lo, hi], axis=1),
+                        sum(n for _, _, n in segs))

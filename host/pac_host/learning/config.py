@@ -108,6 +108,12 @@ class PALConfig:
     # transition off by 0.01 left a misfit that predicted 49 blocks where the robot covered 32
     # (pac_host.learning.model_fit.refine_effects)
     refine_effects: bool = False
+    # With the "fit" correction: whether the operational turn cycle is chosen on the evidence
+    # of all its walks and the model's prediction once the robot's step noise is estimated
+    # clearly above zero, a repeat test asked for when the walks cannot decide (True), or
+    # replaced whenever one walk beats the last (False, runs saved before it). On a robot
+    # without step noise the two are one rule (pac_host.learning.operational)
+    operational_evidence: bool = False
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 

@@ -47,6 +47,7 @@ from scipy.optimize import least_squares
 
 from pac_host.coverage import expand
 from pac_host.diagnose import Run, split_runs
+from pac_host.diagnose.noise import StepNoiseFit, estimate_step_noise
 from pac_host.diagnose.pipeline import select_effects
 from pac_host.diagnose.residuals import Batch, batch_of, predicted_moves, row_design, step_residuals
 from pac_host.errors import InputError
@@ -120,6 +121,12 @@ def _runs(observed: Sequence[Observed]) -> list[Run]:
     return [Run(f"t{i}", np.asarray(o.poses[0], dtype=np.float64), np.asarray(o.gait_ids),
                 np.asarray(o.poses[1:], dtype=np.float64), int(o.cycles_since_power_on))
             for i, o in enumerate(observed) if len(o.gait_ids) > 0]
+
+
+def step_noise(observed: Sequence[Observed]) -> StepNoiseFit | None:
+    """The robot's step noise per component, with its interval, from every observed test
+    (:func:`pac_host.diagnose.noise.estimate_step_noise`; None: no repeated steps yet)."""
+    return estimate_step_noise(_runs(observed))
 
 
 def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator

@@ -33,8 +33,10 @@ from dataclasses import replace
 import numpy as np
 
 from pac_host.coverage import fitness_of_score, format_turn_cycle, simulate
+from pac_host.diagnose.noise import StepNoiseFit
 from pac_host.errors import InputError
 from pac_host.learning import model_fit, model_ga
+from pac_host.learning import operational as operational_rule
 from pac_host.learning.anytime_search import _AnytimeSearch, _ranking
 from pac_host.learning.config import (
     CORRECTIONS,
@@ -114,7 +116,7 @@ def punctuate(
     search draws from its own generator, split off ``rng`` first. Returns the new state and a
     JSON-ready record of what happened.
     """
-    tests = choose_tests(state, rng, cfg)
+    tests = operational_rule.with_repeat(choose_tests(state, rng, cfg), state.repeat)
     model_rows = state.models[0]
     predicted = simulate(model_rows, tests, cfg.budget, state.model_effects)
     search = None
@@ -143,6 +145,14 @@ def punctuate(
     else:
         operational = state.operational
         op_score, op_fit = state.operational_score, state.operational_fitness
+    walks = _walked(state, tests, results)
+    noise_fit = _step_noise(state, tests, results, cfg)
+    estimates, repeat = {}, None
+    if cfg.operational_evidence and noise_fit is not None and noise_fit.clear():
+        # a noisy robot: every walk and the model's prediction decide, not the last walk
+        operational, op_score, op_fit, replaced, repeat, estimates = _by_evidence(
+            state, tests, results, walks, noise_fit.noise, rng, cfg)
+    op_walks = walks.get(operational_rule.key(operational), (op_fit,))
 
     if cfg.correction == "fit":
         models, errors, model_effects, observed, fit_record, structure = _fit_correction(
@@ -176,17 +186,109 @@ def punctuate(
         "operational": format_turn_cycle(operational),
         "operational_fitness": int(op_fit),
         "operational_replaced": bool(replaced),
+        "operational_estimate": _logged_estimate(operational, op_walks, estimates, noise_fit),
+        "test_walks": [len(walks[operational_rule.key(t)]) for t in tests],
         "robot_seconds": round(float(seconds_of_tests(tests, cfg.budget).sum()), 3),
         **fit_record,
     }
+    if cfg.correction == "fit":
+        record["step_noise"] = None if noise_fit is None else noise_fit.to_json()
+    if estimates:
+        record["test_estimates"] = [estimates[operational_rule.key(t)].to_json() for t in tests]
+        record["repeat"] = None if repeat is None else operational_rule.key(repeat)
     pop, carried = state.cga_pop, state.search
     if search is not None:
         search.on_corrected(models, model_effects, operational)
         pop, carried = search.pop, search.chain
         record["search"] = search.record
     new = PALState(state.generation, pop, models, tuple(model_effects), operational,
-                   op_score, op_fit, state.base, observed, carried, *structure)
+                   op_score, op_fit, state.base, observed, carried, *structure, walks, repeat)
     return new, record
+
+
+def _walked(state: PALState, tests: np.ndarray, results: list[TestResult]
+            ) -> dict[str, tuple[int, ...]]:
+    """Every walk so far, these tests' added (a state saved before walks were kept: the
+    operational turn cycle's one known walk)."""
+    walks = dict(state.walks)
+    if not walks and state.operational_fitness is not None:
+        walks[operational_rule.key(state.operational)] = (int(state.operational_fitness),)
+    for t, r in zip(tests, results, strict=True):
+        k = operational_rule.key(t)
+        walks[k] = walks.get(k, ()) + (int(r.fitness),)
+    return walks
+
+
+def _observed_tests(tests: np.ndarray, results: list[TestResult], budget: int
+                    ) -> tuple[model_fit.Observed, ...]:
+    """These tests as observed runs: the gait ids walked and the observed poses."""
+    return tuple(model_fit.Observed(model_fit.expand_ids(t, budget)[: len(r.poses) - 1],
+                                    np.asarray(r.poses))
+                 for t, r in zip(tests, results, strict=True))
+
+
+def _step_noise(state: PALState, tests: np.ndarray, results: list[TestResult],
+                cfg: PALConfig) -> StepNoiseFit | None:
+    """With the "fit" correction, the robot's step noise estimated from every observed run
+    (None: another correction, paths not observed, or no repeated steps yet)."""
+    if cfg.correction != "fit" or any(r.poses is None for r in results):
+        return None
+    observed = tuple(state.observed) + _observed_tests(tests, results, cfg.budget)
+    return model_fit.step_noise(observed)
+
+
+def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
+                 walks: dict[str, tuple[int, ...]], noise, rng: np.random.Generator,
+                 cfg: PALConfig):
+    """The operational turn cycle chosen on all its walks and the model's prediction with the
+    estimated step ``noise`` (:mod:`pac_host.learning.operational`): (operational, its score,
+    its last walk's fitness, replaced, the turn cycle to walk again or None, the estimates)."""
+    tested = range(len(tests)) if cfg.operational == "tested" else range(1)
+    keys = [operational_rule.key(tests[i]) for i in tested]
+    op_key = None if state.operational_score is None else operational_rule.key(state.operational)
+    cands, names = [], []  # the operational turn cycle and every test (each is logged)
+    for tc in ([] if op_key is None else [state.operational]) + list(tests):
+        if operational_rule.key(tc) not in names:
+            names.append(operational_rule.key(tc))
+            cands.append(tc)
+    mean, walk_sd, model_sd = operational_rule.model_walks(
+        state.models, state.model_effects, np.stack(cands), cfg.budget, noise,
+        np.random.default_rng(rng.integers(2**63)))
+    estimates = {}
+    for k, m, s, d in zip(names, mean, walk_sd, model_sd, strict=True):
+        w = walks.get(k, ())
+        estimates[k] = operational_rule.estimate(w, float(m), operational_rule.pooled_sd(
+            float(s), w), float(d))
+    chosen, again = operational_rule.decide(op_key, estimates, keys)
+    repeat = None
+    if again is not None:
+        repeat = state.operational if again == op_key else tests[keys.index(again)].copy()
+    if chosen is not None:
+        i = list(tested)[keys.index(chosen)]
+        return (tests[i].copy(), results[i].score, results[i].fitness, True, repeat,
+                estimates)
+    walked = [i for i in range(len(tests)) if operational_rule.key(tests[i]) == op_key]
+    score = results[walked[-1]].score if walked else state.operational_score
+    last = walks.get(op_key, (state.operational_fitness,))[-1]
+    return (state.operational, score, last, False, repeat, estimates)
+
+
+def _logged_estimate(operational: np.ndarray, walks: Sequence[int],
+                     estimates: dict, noise_fit: StepNoiseFit | None) -> dict:
+    """The operational turn cycle's expected fitness as logged: the evidence rule's estimate;
+    else, on a robot without clear step noise, its walks' mean (each walk exact); with clear
+    step noise but the last-walk rule, the walks' mean and standard error (interval None after
+    one walk: its spread is unknown)."""
+    k = operational_rule.key(operational)
+    if k in estimates:
+        return estimates[k].to_json()
+    n = len(walks)
+    if noise_fit is None or not noise_fit.clear():
+        return operational_rule.estimate(walks, 0.0, 0.0, 0.0).to_json()
+    if n < 2:
+        return {"mean": round(float(np.mean(walks)), 2), "interval": None, "walks": n}
+    return operational_rule.Estimate(float(np.mean(walks)),
+                                     float(np.std(walks, ddof=1) / np.sqrt(n)), n).to_json()
 
 
 def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult],
@@ -197,10 +299,7 @@ def _fit_correction(state: PALState, tests: np.ndarray, results: list[TestResult
     if any(r.poses is None for r in results):
         raise InputError("model correction 'fit' needs the robot's observed paths; this observer "
                          "reports coverage counts only (use --correction ga)")
-    new = tuple(model_fit.Observed(model_fit.expand_ids(t, cfg.budget)[: len(r.poses) - 1],
-                                   np.asarray(r.poses)) for t, r in zip(tests, results,
-                                                                        strict=True))
-    observed = tuple(state.observed) + new
+    observed = tuple(state.observed) + _observed_tests(tests, results, cfg.budget)
     base = state.base or GaitTable(state.models[0], state.model_effects)
     due = model_fit.structure_due(len(observed), state.structure_runs)
     post = model_fit.correct(base, observed, rng, cfg.structure, cfg.model_config().scale,

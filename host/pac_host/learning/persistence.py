@@ -32,6 +32,8 @@ def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
         "search": state.search,
         "structure": [e.to_json() for e in state.structure],
         "structure_runs": state.structure_runs,
+        "walks": {k: list(v) for k, v in state.walks.items()},
+        "repeat": None if state.repeat is None else state.repeat.tolist(),
         "rng": rng.bit_generator.state,
     }
 
@@ -51,6 +53,15 @@ def _search_from_json(doc) -> dict | None:
     if doc.get("explore") is not None:  # the best on a posterior draw, the next test
         out["explore"] = np.asarray(doc["explore"], dtype=np.int64).reshape(-1, 2).tolist()
     return out
+
+
+def _walks_from_json(doc) -> dict[str, tuple[int, ...]]:
+    """The walks of a state document, checked ({}: a state saved before they were kept)."""
+    if doc is None:
+        return {}
+    if not isinstance(doc, dict) or not all(isinstance(v, list) for v in doc.values()):
+        raise InputError("a PAL state's walks must map turn cycles to lists of fitnesses")
+    return {str(k): tuple(int(f) for f in v) for k, v in doc.items()}
 
 
 def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
@@ -79,6 +90,9 @@ def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
             _search_from_json(doc.get("search")),
             tuple(effect_from_json(e) for e in doc.get("structure", [])),
             None if doc.get("structure_runs") is None else int(doc["structure_runs"]),
+            _walks_from_json(doc.get("walks")),  # states saved before it: none kept
+            None if doc.get("repeat") is None
+            else np.array(doc["repeat"], dtype=np.int64).reshape(-1, 2),
         )
     except (KeyError, TypeError, ValueError) as e:
         raise InputError(f"PAL state is incomplete or malformed ({e})") from None

@@ -33,6 +33,10 @@ and
   Each punctuation's correction fits the sequence and world effects' parameters again with the
   rows on every run (``refine_effects``): the selection's estimate from its latest runs left
   the rows a misfit that moved the predicted coverage by blocks.
+  Once the robot's step noise is estimated clearly above zero, the operational turn cycle is
+  chosen on all its walks and the model's prediction, not on one walk
+  (``operational_evidence``, :mod:`pac_host.learning.operational`); without step noise the
+  rule is the last-walk one, figure for figure.
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -52,7 +56,8 @@ PROFILES: dict[str, dict] = {
     "default": {"search": "ils", "search_evaluations": 400_000, "shapes": "builtin",
                 "explore": 0.25, "search_chains": 8, "kick_length_cost": SHORTER,
                 "shorten_after": SHORTEN_AFTER, "shorten_windows": True,
-                "library_restarts": True, "finish_moves": True, "refine_effects": True},
+                "library_restarts": True, "finish_moves": True, "refine_effects": True,
+                "operational_evidence": True},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

@@ -3,7 +3,7 @@ it) and where a run starts (:func:`initial_state`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,6 +31,11 @@ class PALState:
     # the effects the "fit" correction last selected, and the observed runs it had then
     structure: tuple = ()
     structure_runs: int | None = None
+    # every walk on the robot: turn cycle (its text form) -> the fitness of each walk, in order
+    walks: dict[str, tuple[int, ...]] = field(default_factory=dict)
+    # the turn cycle a decision on the operational one asked to walk again at the next
+    # punctuation (operational_evidence), None: no repeat asked
+    repeat: np.ndarray | None = None
 
 
 def initial_state(

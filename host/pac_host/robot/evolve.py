@@ -85,6 +85,8 @@ class EvolveConfig:
     library_restarts: bool = pal.PALConfig.library_restarts  # runs saved before it: False
     finish_moves: bool = pal.PALConfig.finish_moves  # runs saved before it: False
     refine_effects: bool = pal.PALConfig.refine_effects  # runs saved before it: False
+    # runs saved before it: False
+    operational_evidence: bool = pal.PALConfig.operational_evidence
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -117,6 +119,7 @@ class EvolveConfig:
             kick_length_cost=self.kick_length_cost, shorten_after=self.shorten_after,
             shorten_windows=self.shorten_windows, library_restarts=self.library_restarts,
             finish_moves=self.finish_moves, refine_effects=self.refine_effects,
+            operational_evidence=self.operational_evidence,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

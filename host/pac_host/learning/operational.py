@@ -1,0 +1,140 @@
+"""The operational turn cycle on a noisy robot: chosen on the evidence of all its walks.
+
+A robot with step noise walks a turn cycle differently every time, so one walk is one draw:
+replacing the operational turn cycle whenever one walk beats the last keeps the luckiest walk
+(the winner's curse). With ``operational_evidence`` and step noise estimated clearly above
+zero (:func:`pac_host.diagnose.noise.estimate_step_noise`), each candidate's expected fitness
+is the mean of its walks shrunk toward the model's prediction (:func:`estimate`): the model,
+walked :data:`MODEL_WALKS` times with the estimated noise, gives the prediction and the
+spread of one walk, and counts as one walk at most (less where its population disagrees). A
+challenger replaces the operational turn cycle only when its estimate is higher by more than
+:data:`DECISION_Z` standard errors of the difference; higher but not by that much, the one
+known less well is walked again at the next punctuation (:func:`decide`). Without step noise
+a walk is exact and the rule is the paper's: the higher walk wins.
+
+>>> e = estimate([45], predicted=15.0, walk_sd=10.0, model_sd=0.0)
+>>> round(e.mean, 1), e.walks
+(30.0, 1)
+>>> estimate([20, 22], predicted=0.0, walk_sd=0.0, model_sd=5.0).to_json()
+{'mean': 21.0, 'interval': [21.0, 21.0], 'walks': 2}
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pac_host.coverage import format_turn_cycle, simulate
+from pac_host.diagnose.noise import Z95
+from pac_host.model.effects import Effect
+from pac_host.model.step_noise import StepNoise
+
+MODEL_WALKS = 32  # noisy walks of the model per candidate: its prediction and a walk's spread
+DECISION_Z = 1.645  # a challenger must beat the operational one by this many standard errors
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A turn cycle's expected fitness on the robot: mean, standard error, walks behind it."""
+
+    mean: float
+    sd: float
+    walks: int
+
+    def interval(self) -> tuple[float, float]:
+        """The 95% interval of the expectation."""
+        return self.mean - Z95 * self.sd, self.mean + Z95 * self.sd
+
+    def to_json(self) -> dict:
+        lo, hi = self.interval()
+        return {"mean": round(self.mean, 2), "interval": [round(lo, 2), round(hi, 2)],
+                "walks": self.walks}
+
+
+def key(turn_cycle: np.ndarray) -> str:
+    """The name walks are kept under: the turn cycle's text form."""
+    return format_turn_cycle(turn_cycle)
+
+
+def estimate(walks: Sequence[float], predicted: float, walk_sd: float, model_sd: float
+             ) -> Estimate:
+    """The expected fitness of a turn cycle from its ``walks`` on the robot and the model's
+    ``predicted`` expectation: the walks' mean shrunk toward the prediction (a Gaussian
+    posterior; ``walk_sd`` the spread of one walk, the prediction's own variance ``walk_sd^2 +
+    model_sd^2``, so the model counts as one walk at most). ``walk_sd`` 0: the walks are exact
+    (their mean, no spread); no walks: the prediction."""
+    n = len(walks)
+    if walk_sd <= 0.0:
+        if n:
+            return Estimate(float(np.mean(walks)), 0.0, n)
+        return Estimate(float(predicted), float(model_sd), 0)
+    prior_var = walk_sd**2 + model_sd**2
+    precision = 1.0 / prior_var + n / walk_sd**2
+    mean = (predicted / prior_var + float(np.sum(walks)) / walk_sd**2) / precision
+    return Estimate(float(mean), math.sqrt(1.0 / precision), n)
+
+
+def model_walks(models: np.ndarray, effects: Sequence[Effect], candidates: np.ndarray,
+                budget: int, noise: StepNoise, rng: np.random.Generator,
+                walks: int = MODEL_WALKS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each candidate (C, 9, 2): the model's expected fitness and one walk's standard
+    deviation over ``walks`` noisy walks of the model (``models[0]``) with ``noise``, and the
+    standard deviation of the noise-free fitness over the model population (its
+    disagreement), each (C,)."""
+    from pac_host.coverage.walks import noisy_walks
+
+    genes = np.repeat(candidates, walks, axis=0)
+    fit = noisy_walks(models[0], genes, budget, effects, noise, rng).fitness
+    fit = fit.astype(np.float64).reshape(len(candidates), walks)
+    spread = simulate(models, candidates, budget, effects).fitness.astype(np.float64)
+    return fit.mean(axis=1), fit.std(axis=1, ddof=1), spread.std(axis=0)
+
+
+def pooled_sd(model_sd: float, walks: Sequence[float], model_walks_n: int = MODEL_WALKS
+              ) -> float:
+    """One walk's spread: the model's walks' and the robot's own walks' pooled."""
+    n = len(walks)
+    if n < 2:
+        return model_sd
+    ss = (model_walks_n - 1) * model_sd**2 + (n - 1) * float(np.var(walks, ddof=1))
+    return math.sqrt(ss / (model_walks_n + n - 2))
+
+
+def with_repeat(tests: np.ndarray, repeat: np.ndarray | None) -> np.ndarray:
+    """``tests`` (T, 9, 2) with ``repeat`` in the last place (test 0, the best on the model,
+    stays), unless it is tested already or None."""
+    if repeat is None or any(np.array_equal(t, repeat) for t in tests) or len(tests) < 2:
+        return tests
+    out = tests.copy()
+    out[-1] = repeat
+    return out
+
+
+def decide(operational: str | None, estimates: dict[str, Estimate],
+           challengers: Sequence[str]) -> tuple[str | None, str | None]:
+    """(the candidate that becomes operational or None to keep it, the candidate to walk
+    again or None): the ``challengers`` (tested keys) with the highest expectation against the
+    ``operational`` one (None: none yet, the best challenger is taken). It replaces only when
+    higher by more than :data:`DECISION_Z` standard errors of the difference; higher by less,
+    the one of the two with the larger standard error is walked again.
+
+    >>> est = {"a": Estimate(15.0, 1.0, 6), "b": Estimate(20.0, 6.0, 1)}
+    >>> decide("a", est, ["b"]), decide("a", {**est, "b": Estimate(25.0, 2.0, 3)}, ["b"])
+    ((None, 'b'), ('b', None))
+    """
+    others = [c for c in challengers if c != operational]
+    if not others:
+        return None, None
+    best = max(others, key=lambda c: estimates[c].mean)  # first of equals: the earlier test
+    if operational is None:
+        return best, None
+    o, c = estimates[operational], estimates[best]
+    gap = c.mean - o.mean
+    if gap > DECISION_Z * math.hypot(o.sd, c.sd):
+        return best, None
+    if gap > 0:
+        return None, best if c.sd > o.sd else operational
+    return None, None
