@@ -18,8 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, START_POSE, Scorer, fitness_of_search_score
+from pac_host.coverage.noisy import NoisyScorer
 from pac_host.coverage.placement import PlacementError
 from pac_host.model.effects import Effect
+from pac_host.model.step_noise import StepNoise
 from pac_host.search.kicks import closing_kick, loop_table
 from pac_host.search.neighbours import (
     canonical,
@@ -36,6 +38,10 @@ PAIRS = -1  # stands for the neighbourhood of paired repetition changes
 # What the search scores are (Objective.fingerprint): a chain carried from a run whose scores
 # ranked otherwise re-scores its point rather than compare scores of two kinds.
 _SCORES = "search_score: fitness, reached sooner, fewer repeat visits"
+
+
+# walks of a noisy batch scored between two looks at the deadline (about 0.1 s)
+NOISY_CHUNK_WALKS = 1 << 17
 
 
 class Exhausted(Exception):
@@ -66,6 +72,15 @@ class Objective:
     search then prefers turn cycles whose rows the tests have pinned; the best turn cycle
     on the model alone among those scored is kept too (``best_alone``), the one the model is
     most hopeful about, worth a test.
+
+    With ``step_noise`` each turn cycle is walked K times with the noise drawn from
+    ``normals`` (K, budget, 3), the same for every turn cycle (common random numbers,
+    :mod:`pac_host.coverage.noisy`), walk k from ``walk_starts[k]`` (None: ``start_pose``; a
+    placement error is given as start poses drawn with it): the search scores rank the mean
+    fitness of the walks (or their ``quantile``), which :meth:`fitness` reads, and a turn
+    cycle costs K evaluations. The best of these scores favour the luck of K walks: the
+    ``keep_finalists`` best turn cycles scored (distinct scores; each batch's best) are kept
+    in :attr:`finalists` to be re-scored on fresh walks before one is believed.
     """
 
     rows: np.ndarray
@@ -78,6 +93,12 @@ class Objective:
     placement: PlacementError | None = None
     models: np.ndarray | None = None
     finish: bool = False  # the limit waits for the end of a move (spent), never cuts one
+    step_noise: StepNoise | None = None  # score over noisy walks (pac_host.coverage.noisy)
+    normals: np.ndarray | None = None  # their standard normals (K, budget, 3)
+    walk_starts: np.ndarray | None = None  # each noisy walk's start pose (K, 3)
+    quantile: float | None = None  # rank the walks' fitness by this quantile (None: the mean)
+    keep_finalists: int = 0
+    finalists: list = field(default_factory=list)  # (search score, turn cycle), best first
     evaluations: int = 0  # walks simulated
     best: np.ndarray | None = None
     best_score: int | None = None  # the best's score (Coverage.score)
@@ -90,9 +111,16 @@ class Objective:
     windows_tried: set = field(default_factory=set)
 
     def __post_init__(self) -> None:
-        poses = (self.start_pose if self.placement is None
-                 else self.placement.stencil(self.start_pose))
-        self._scorer = Scorer(self.rows, self.budget, self.effects, poses, self.models)
+        if self.step_noise is not None:
+            if self.normals is None:
+                raise ValueError("an objective with step noise needs its normals")
+            self._scorer = NoisyScorer(
+                self.rows, self.step_noise, self.normals, self.budget, self.effects,
+                self.start_pose if self.walk_starts is None else self.walk_starts, self.quantile)
+        else:
+            poses = (self.start_pose if self.placement is None
+                     else self.placement.stencil(self.start_pose))
+            self._scorer = Scorer(self.rows, self.budget, self.effects, poses, self.models)
         self.starts = self._scorer.walks  # walks a turn cycle costs
         self._loop_table = None
 
@@ -113,11 +141,19 @@ class Objective:
             h.update(repr(("placement", self.placement.to_text())).encode())
         if self.models is not None and len(self.models):
             h.update(np.ascontiguousarray(self.models, dtype=np.float64).tobytes())
+        if self.step_noise is not None:
+            h.update(repr(("step_noise", self.quantile)).encode())
+            for a in (self.step_noise.sd, self.normals, self.walk_starts):
+                if a is not None:
+                    h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
         return h.hexdigest()[:16]
 
     def fitness(self, search_score: int) -> int | float:
         """The coverage fitness inside one of this objective's search scores (with a
-        placement error or models, the mean over the walks)."""
+        placement error or models, the mean over the walks; with step noise, the mean or
+        quantile of the noisy walks)."""
+        if self.step_noise is not None:
+            return self._scorer.fitness(search_score)
         total = int(fitness_of_search_score(search_score, self.budget, self.starts))
         return total if self.starts == 1 else total / self.starts
 
@@ -144,6 +180,12 @@ class Objective:
         exact; with ``finish`` neither: the caller stops between moves)."""
         if self.expired():
             raise Exhausted
+        if (self.step_noise is not None and len(pop) * self.starts > NOISY_CHUNK_WALKS
+                and (self.deadline is not None or self.cancelled is not None)):
+            # a noisy batch costs K walks a turn cycle: a large one (a shorter loop's
+            # proposals) is scored in parts, so a deadline stops it within a fraction of a second
+            step = max(1, NOISY_CHUNK_WALKS // self.starts)
+            return np.concatenate([self(pop[i:i + step]) for i in range(0, len(pop), step)])
         left = self.remaining()
         if left is not None and not self.finish:
             if left < self.starts:
@@ -157,12 +199,27 @@ class Objective:
                 self.best_alone, self.best_alone_score = pop[j].copy(), int(scores[j])
         if len(keys):
             i = int(np.argmax(keys))
+            if self.keep_finalists:
+                self._offer(pop[i], int(keys[i]))
             if self.best_search_score is None or keys[i] > self.best_search_score:
                 self.best, self.best_search_score = pop[i].copy(), int(keys[i])
                 self.best_score = int(scores[i])
                 self.trace.append((self.evaluations, time.perf_counter() - self.t0,
                                    self.fitness(self.best_search_score)))
         return keys
+
+
+    def _offer(self, genes: np.ndarray, key: int) -> None:
+        """Keep ``genes`` among the finalists if its search score is among the best kept
+        (one turn cycle a score: equal scores are almost always the same walks)."""
+        kept = self.finalists
+        if len(kept) >= self.keep_finalists and key <= kept[-1][0]:
+            return
+        if any(k == key for k, _ in kept):
+            return
+        kept.append((key, genes.copy()))
+        kept.sort(key=lambda e: -e[0])
+        del kept[self.keep_finalists:]
 
 
 def climb(x: np.ndarray, score: int, objective: Objective,
