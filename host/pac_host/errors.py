@@ -38,3 +38,29 @@ def exit_code(error: BaseException) -> int:
     if isinstance(error, ProtocolUsageError):
         return 2
     return 1
+
+
+# the operating system's refusals that come from what the user named (a path to read or write
+# that does not exist, is not a folder or may not be written): input errors, exit 2; any other
+# (a full disk, a vanished device) is a fault during the run, exit 1
+_INPUT_OS_ERRORS = (FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError,
+                    FileExistsError)
+
+
+def os_error_line(error: OSError | UnicodeDecodeError) -> tuple[str, int]:
+    """One line naming what the operating system refused, and its exit code: the safety net
+    for a read or write no reader or writer turned into an :class:`InputError` itself.
+
+    >>> os_error_line(PermissionError(13, "Permission denied", "out/log.jsonl"))
+    ('out/log.jsonl: Permission denied', 2)
+    >>> os_error_line(OSError(28, "No space left on device", "out/state.json"))
+    ('out/state.json: No space left on device', 1)
+    >>> os_error_line(UnicodeDecodeError("utf-8", b"\\xff", 0, 1, "invalid start byte"))
+    ('a file is not UTF-8 text (invalid start byte at offset 0)', 2)
+    """
+    if isinstance(error, UnicodeDecodeError):
+        return f"a file is not UTF-8 text ({error.reason} at offset {error.start})", 2
+    what = error.strerror or str(error)
+    where = error.filename if error.filename is not None else ""
+    text = f"{where}: {what}" if where else what
+    return text, 2 if isinstance(error, _INPUT_OS_ERRORS) else 1

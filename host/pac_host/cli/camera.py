@@ -10,6 +10,7 @@ import click
 from pac_host import limits
 from pac_host.cli.options import Bounded
 from pac_host.errors import InputError
+from pac_host.files import read_text
 
 
 def _need_cv2() -> None:
@@ -25,8 +26,8 @@ def _layout(path: Path | None):
     if path is None:
         return Layout()
     try:
-        doc = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as e:
+        doc = json.loads(read_text(path, "--layout"))
+    except json.JSONDecodeError as e:
         raise InputError(f"--layout {path}: cannot read it as JSON ({e})") from None
     return Layout.from_json(doc.get("layout", doc) if isinstance(doc, dict) else {})
 

@@ -13,7 +13,7 @@ import sys
 import click
 
 from pac_host import __version__
-from pac_host.errors import TOOLKIT_ERRORS, exit_code
+from pac_host.errors import TOOLKIT_ERRORS, exit_code, os_error_line
 
 # Every command: where it lives ("module:attribute", imported only when the command runs,
 # completes its options or shows its own help) and its one-line help, so `pac-host --help` and
@@ -97,6 +97,10 @@ class _Group(click.Group):
         except BrokenPipeError:
             sys.stderr.close()
             ctx.exit(1)
+        except (OSError, UnicodeDecodeError) as e:  # the safety net: still one line
+            line, code = os_error_line(e)
+            click.echo(f"pac-host: error: {line}", err=True)
+            ctx.exit(code)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from pac_host.errors import InputError
-from pac_host.files import write_atomic
+from pac_host.files import read_text, write_atomic
 
 N_IDS = 32
 
@@ -128,12 +128,7 @@ def parse_runs(lines: Iterable[str], source: str = "runs") -> list[Run]:
 def read_runs(path: str | Path) -> list[Run]:
     """Read and validate an observed-runs JSON Lines file."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as e:
-        raise InputError(f"{p}: cannot read runs ({e.strerror or e})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{p}: not a JSON Lines text file") from None
+    text = read_text(p, "runs")
     return parse_runs(text.splitlines(), str(p))
 
 

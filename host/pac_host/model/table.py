@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from pac_host.errors import InputError
-from pac_host.files import write_atomic
+from pac_host.files import read_text, write_atomic
 from pac_host.model.step_noise import NONE, StepNoise, parse_step_noise, step_noise_from_json
 
 FORMAT = "pac-gait-table/1"
@@ -156,10 +156,7 @@ def table_from_json(doc: object, source: str = "table") -> GaitTable:
 def load_table(path: str | Path) -> GaitTable:
     """Read and validate a pac-gait-table/1 JSON file."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as e:
-        raise InputError(f"{p}: cannot read gait table ({e.strerror or e})") from None
+    text = read_text(p, "gait table")
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as e:

@@ -42,6 +42,7 @@ from pac_host.experiments.sweep.settings import (
     check_value,
     experiment_config,
 )
+from pac_host.files import read_text
 from pac_host.model import GaitTable, load_with_effects
 from pac_host.model.table import BUILTIN
 
@@ -141,10 +142,9 @@ def parse_sweep(doc: dict, base_dir: Path = Path("."), source: str = "sweep") ->
 
 def load_sweep(path: Path) -> list[Cell]:
     """Read a sweep file; every problem is one :class:`InputError` naming its place."""
+    text = read_text(path, "sweep file")
     try:
-        doc = tomllib.loads(Path(path).read_text())
-    except OSError as e:
-        raise InputError(f"{path}: cannot read: {e.strerror}") from None
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"{path}: not valid TOML: {e}") from None
     return parse_sweep(doc, Path(path).resolve().parent, str(path))
