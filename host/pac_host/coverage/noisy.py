@@ -14,7 +14,7 @@ per step, its body-width test and figures): a step's rotation is the row's times
 ``exp(-i (dH + sd z))`` = ``exp(-i dH) exp(-i sd z)``, the second tabulated once per (step, walk)
 for each deviation in dH the table uses. With every deviation 0 it gives
 :func:`~pac_host.coverage.simulate`'s figures value for value; :func:`reference_figures` is the
-straightforward numpy walk (rows plus noise, sine and cosine of the heading), the tests' reference.
+numpy noisy walk of :mod:`pac_host.coverage.walks` on the same normals, the tests' reference.
 
 >>> from pac_host.model import shifted_table
 >>> from pac_host.model.step_noise import parse_step_noise
@@ -28,20 +28,20 @@ straightforward numpy walk (rows plus noise, sine and cosine of the heading), th
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Sequence
 
 import numpy as np
 
 from pac_host.coverage import kernel as coverage_jit
-from pac_host.coverage.area import START_POSE, detect_blocks
-from pac_host.coverage.scores import figures_from_blocks
-from pac_host.coverage.turn_cycle import DEFAULT_BUDGET, check_budget, expand
+from pac_host.coverage.area import START_POSE
+from pac_host.coverage.turn_cycle import DEFAULT_BUDGET, check_budget
+from pac_host.coverage.walks import spread, walks_of_normals
 from pac_host.errors import InputError
 from pac_host.model.effects import (
     Effect,
     effective_rows,
     sequence_effects,
-    step_moves,
     world_drift,
 )
 from pac_host.model.kinematics import complex_moves, heading_rotation
@@ -97,7 +97,7 @@ def _score_noisy(genes: np.ndarray, disp_r: np.ndarray, disp_i: np.ndarray, rot_
                  level: np.ndarray, zf: np.ndarray, zt: np.ndarray, zh: np.ndarray,
                  nrot_r: np.ndarray, nrot_i: np.ndarray, q0r: np.ndarray, q0i: np.ndarray,
                  p0r: np.ndarray, p0i: np.ndarray, drift_r: float, drift_i: float,
-                 budget: int) -> np.ndarray:
+                 budget: int, state: np.ndarray, ints: np.ndarray) -> np.ndarray:
     """Figures (5, P * K) of turn cycles ``genes`` (P, G, 2) over K noisy walks: column
     ``p * K + k`` is turn cycle p's walk k.
 
@@ -110,18 +110,21 @@ def _score_noisy(genes: np.ndarray, disp_r: np.ndarray, disp_i: np.ndarray, rot_
     The walks' state after each gait cycle t is row t of (budget + 1, K) arrays, which a step
     reads at t - 1 and writes at t, so it is kept for the next turn cycle at no cost: each
     turn cycle starts where it parts from the one before it, as the noise-free kernel's paths
-    do (the gait cycles they walk alike, with the same normals, are not walked again)."""
+    do (the gait cycles they walk alike, with the same normals, are not walked again).
+    The loops index these arrays by (t, k) rather than take a row view per gait cycle: a
+    view costs its reference counting at every step, and without it the stepping runs about
+    20% faster (bench/bench_noisy.py), the same arithmetic. The caller keeps them from call to
+    call: ``state`` (4, budget + 1, K) floats (q and p, real and imaginary parts) and ``ints``
+    (4, budget + 1, K) (the blocks, their running highest, and in column 0 the gene walked
+    at t and its repetitions walked by then), so a small batch does not pay for fresh pages."""
     n_genes = genes.shape[0]
     n_walks = zf.shape[1]
     out = np.empty((5, n_genes * n_walks), dtype=np.int64)
-    blocks = np.empty((budget + 1, n_walks), dtype=np.int64)
-    qr = np.empty((budget + 1, n_walks))
-    qi = np.empty((budget + 1, n_walks))
-    pr = np.empty((budget + 1, n_walks))
-    pi = np.empty((budget + 1, n_walks))
-    top = np.empty((budget + 1, n_walks), dtype=np.int64)  # the highest block detected by t
-    js = np.empty(budget + 1, dtype=np.int64)  # the gene walked at t
-    used = np.empty(budget + 1, dtype=np.int64)  # its repetitions walked by t
+    qr, qi, pr, pi = state[0], state[1], state[2], state[3]
+    blocks = ints[0]
+    top = ints[1]  # the highest block detected by t
+    js = ints[2, :, 0]  # the gene walked at t
+    used = ints[3, :, 0]  # its repetitions walked by t
     visits = np.zeros(64, dtype=np.int64)
     first = np.zeros(64, dtype=np.int64)
     for k in range(n_walks):
@@ -147,16 +150,15 @@ def _score_noisy(genes: np.ndarray, disp_r: np.ndarray, disp_i: np.ndarray, rot_
             j = js[s]
             left = g[j, 1] - used[s]
         for t in range(s + 1, budget + 1):
-            qr0, qi0, pr0, pi0, top0 = qr[t - 1], qi[t - 1], pr[t - 1], pi[t - 1], top[t - 1]
-            qr1, qi1, pr1, pi1, top1 = qr[t], qi[t], pr[t], pi[t], top[t]
-            blocks_t = blocks[t]
+            u = t - 1
             if loop == 0:  # a turn cycle without repetitions stands still: no gait cycle
-                qr1[:] = qr0
-                qi1[:] = qi0
-                pr1[:] = pr0
-                pi1[:] = pi0
-                top1[:] = top0
-                blocks_t[:] = blocks[t - 1]
+                for k in range(n_walks):
+                    qr[t, k] = qr[u, k]
+                    qi[t, k] = qi[u, k]
+                    pr[t, k] = pr[u, k]
+                    pi[t, k] = pi[u, k]
+                    top[t, k] = top[u, k]
+                    blocks[t, k] = blocks[u, k]
                 continue
             while left == 0:
                 j = (j + 1) % g.shape[0]
@@ -172,61 +174,59 @@ def _score_noisy(genes: np.ndarray, disp_r: np.ndarray, disp_i: np.ndarray, rot_
             sf = sd_f[gait]
             st = sd_t[gait]
             lv = level[gait]
-            zt_t = zt[t - 1]
-            zf_t = zf[t - 1]
             if lv >= 0:
-                nr_t = nrot_r[lv, t - 1]
-                ni_t = nrot_i[lv, t - 1]
                 for k in range(n_walks):
-                    nr = nr_t[k]
-                    ni = ni_t[k]
+                    nr = nrot_r[lv, u, k]
+                    ni = nrot_i[lv, u, k]
                     # the noisy move: displacement, then the rotation (row's times noise's)
-                    mr = dr + st * zt_t[k]
-                    mi = di + sf * zf_t[k]
+                    mr = dr + st * zt[u, k]
+                    mi = di + sf * zf[u, k]
                     wr = rr * nr - ri * ni
                     wi = rr * ni + ri * nr
                     # as the noise-free kernel: step = d q; q = q r; p = p + (step + drift)
-                    sr = mr * qr0[k] - mi * qi0[k]
-                    si = mr * qi0[k] + mi * qr0[k]
-                    a = qr0[k] * wr - qi0[k] * wi
-                    e = qr0[k] * wi + qi0[k] * wr
-                    x = pr0[k] + (sr + drift_r)
-                    y = pi0[k] + (si + drift_i)
-                    qr1[k] = a
-                    qi1[k] = e
-                    pr1[k] = x
-                    pi1[k] = y
+                    a0 = qr[u, k]
+                    e0 = qi[u, k]
+                    sr = mr * a0 - mi * e0
+                    si = mr * e0 + mi * a0
+                    a = a0 * wr - e0 * wi
+                    e = a0 * wi + e0 * wr
+                    x = pr[u, k] + (sr + drift_r)
+                    y = pi[u, k] + (si + drift_i)
+                    qr[t, k] = a
+                    qi[t, k] = e
+                    pr[t, k] = x
+                    pi[t, k] = y
                     b = _block(x, y, a, e)
-                    blocks_t[k] = b
-                    top1[k] = max(top0[k], b)
+                    blocks[t, k] = b
+                    top[t, k] = max(top[u, k], b)
             else:
                 sh = sd_h[gait]
-                zh_t = zh[t - 1]
                 for k in range(n_walks):
-                    ang = -(sh * zh_t[k])
+                    ang = -(sh * zh[u, k])
                     nr = math.cos(ang)
                     ni = math.sin(ang)
-                    mr = dr + st * zt_t[k]
-                    mi = di + sf * zf_t[k]
+                    mr = dr + st * zt[u, k]
+                    mi = di + sf * zf[u, k]
                     wr = rr * nr - ri * ni
                     wi = rr * ni + ri * nr
-                    sr = mr * qr0[k] - mi * qi0[k]
-                    si = mr * qi0[k] + mi * qr0[k]
-                    a = qr0[k] * wr - qi0[k] * wi
-                    e = qr0[k] * wi + qi0[k] * wr
-                    x = pr0[k] + (sr + drift_r)
-                    y = pi0[k] + (si + drift_i)
-                    qr1[k] = a
-                    qi1[k] = e
-                    pr1[k] = x
-                    pi1[k] = y
+                    a0 = qr[u, k]
+                    e0 = qi[u, k]
+                    sr = mr * a0 - mi * e0
+                    si = mr * e0 + mi * a0
+                    a = a0 * wr - e0 * wi
+                    e = a0 * wi + e0 * wr
+                    x = pr[u, k] + (sr + drift_r)
+                    y = pi[u, k] + (si + drift_i)
+                    qr[t, k] = a
+                    qi[t, k] = e
+                    pr[t, k] = x
+                    pi[t, k] = y
                     b = _block(x, y, a, e)
-                    blocks_t[k] = b
-                    top1[k] = max(top0[k], b)
-        tops = top[budget]
+                    blocks[t, k] = b
+                    top[t, k] = max(top[u, k], b)
         for k in range(n_walks):
-            visits, first = _figures(blocks[:, k], budget + 1, tops[k], visits, first, out,
-                                     c * n_walks + k)
+            visits, first = _figures(blocks[:, k], budget + 1, top[budget, k], visits, first,
+                                     out, c * n_walks + k)
     return out
 
 
@@ -270,6 +270,7 @@ class NoisyWalks:
         if self.starts.shape != (self.walks, 3):
             raise ValueError(f"start poses {starts.shape}, expected (3,) or ({self.walks}, 3)")
         self.compiled = coverage_jit.AVAILABLE and not sequence_effects(self.effects)
+        self._scratch = threading.local()
         if self.compiled:
             self._prepare()
 
@@ -308,7 +309,11 @@ class NoisyWalks:
         if not self.compiled:
             return reference_figures(self.rows, genes, self.noise, self.z, self.budget,
                                      self.effects, self.starts)
-        out = _compile()(genes, *self._args)
+        scratch = getattr(self._scratch, "arrays", None)
+        if scratch is None:  # one set per thread (the kernel releases the GIL)
+            shape = (4, self.budget + 1, self.walks)
+            scratch = self._scratch.arrays = (np.empty(shape), np.empty(shape, dtype=np.int64))
+        out = _compile()(genes, *self._args, *scratch)
         return out.reshape(5, genes.shape[0], self.walks)
 
 
@@ -341,33 +346,18 @@ def reference_figures(rows: np.ndarray, genes: np.ndarray, noise: StepNoise, z: 
                       budget: int = DEFAULT_BUDGET, effects: Sequence[Effect] = (),
                       starts: Sequence[float] | np.ndarray = START_POSE) -> np.ndarray:
     """Figures (5, P, K) of turn cycles (P, G, 2) over K noisy walks, the straightforward way
-    (the reference the kernel is tested against): each walk's moves are the rows after the
-    effects plus ``sd * z``, integrated with the sine and cosine of the heading (DESIGN.md
-    2.2), detected by :func:`~pac_host.coverage.detect_blocks`."""
+    (the reference the kernel is tested against): the numpy noisy walk
+    (:func:`~pac_host.coverage.walks.walks_of_normals`, each walk's moves the rows after the
+    effects plus ``sd * z``, integrated by the model's pose update) with walk k's normals
+    shared by every turn cycle."""
     genes = np.asarray(genes, dtype=np.int64)
     if genes.ndim == 2:
         genes = genes[None]
-    z = np.asarray(z, dtype=np.float64)[:, :budget]
-    n_walks = z.shape[0]
-    starts = np.broadcast_to(np.asarray(starts, dtype=np.float64), (n_walks, 3))
-    ids, still = expand(genes, budget)
-    body, world = step_moves(rows, ids, effects)  # (P, budget, 3)
-    moves = body[None] + noise.sd[ids][None] * z[:, None]  # (K, P, budget, 3)
-    moves[:, still] = 0.0
-    poses = np.empty((n_walks, genes.shape[0], budget + 1, 3))
-    x, y, h = (np.repeat(starts[:, i, None], genes.shape[0], axis=1) for i in range(3))
-    poses[:, :, 0] = np.stack((x, y, h), axis=-1)
-    for t in range(budget):
-        f, lat, dh = moves[:, :, t, 0], moves[:, :, t, 1], moves[:, :, t, 2]
-        rad = np.radians(h)
-        x = x + f * np.sin(rad) + lat * np.cos(rad)
-        y = y + f * np.cos(rad) - lat * np.sin(rad)
-        if world is not None:
-            x = x + np.where(still, 0.0, world[:, t, 0])
-            y = y + np.where(still, 0.0, world[:, t, 1])
-        h = h + dh
-        poses[:, :, t + 1] = np.stack((x, y, h), axis=-1)
-    figures = figures_from_blocks(detect_blocks(poses))
+    z = np.asarray(z, dtype=np.float64)[:, None, :budget]  # (K, 1, budget, 3)
+    starts = np.broadcast_to(np.asarray(starts, dtype=np.float64), (z.shape[0], 3))
+    cov = walks_of_normals(rows, genes, budget, effects, noise, z, starts[:, None])
+    figures = (cov.blocks_covered, cov.blocks_covered_once, cov.fitness, cov.repeat_visits,
+               cov.reached_at)
     return np.stack([np.moveaxis(f, 0, 1) for f in figures])  # (5, P, K)
 
 
@@ -406,10 +396,11 @@ def fitness_of_noisy_score(score: np.ndarray | int, budget: int, walks: int,
 
 def summary(fitness: np.ndarray) -> dict:
     """Mean fitness over walks with its 95% interval (normal approximation), the walks, the
-    median and 10th percentile (JSON-ready)."""
+    median and 10th percentile (JSON-ready): :func:`~pac_host.coverage.walks.spread`'s figures
+    with the interval."""
     f = np.asarray(fitness, dtype=np.float64).ravel()
     half = 1.96 * float(f.std(ddof=1)) / math.sqrt(f.size) if f.size > 1 else 0.0
-    mean = float(f.mean())
-    return {"walks": int(f.size), "mean": round(mean, 3),
-            "ci95": [round(mean - half, 3), round(mean + half, 3)],
-            "median": float(np.median(f)), "p10": float(np.percentile(f, 10))}
+    s = spread(f, digits=3)
+    return {"walks": int(f.size), "mean": s["mean"],
+            "ci95": [round(float(f.mean()) - half, 3), round(float(f.mean()) + half, 3)],
+            "median": s["median"], "p10": s["p10"]}

@@ -79,7 +79,12 @@ class StepNoise:
     def draw(self, gait_ids: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """One draw of noise (..., 3) for each executed gait cycle in ``gait_ids``."""
         gait_ids = np.asarray(gait_ids, dtype=np.int64)
-        return rng.standard_normal(gait_ids.shape + (3,)) * self.sd[gait_ids]
+        return self.errors(gait_ids, rng.standard_normal(gait_ids.shape + (3,)))
+
+    def errors(self, gait_ids: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """The noise (..., 3) of executed gait cycles ``gait_ids`` from standard normals ``z``
+        (broadcast against ``gait_ids.shape + (3,)``): ``z * sd``, per component."""
+        return z * self.sd[np.asarray(gait_ids, dtype=np.int64)]
 
     def to_text(self) -> str:
         u = self.uniform()
