@@ -26,6 +26,12 @@ diagnosis without telling it the effect. Categories:
   patch of higher friction, a heading-dependent pull, a warm-up after power-on), each at three
   magnitude levels; scores the verdict (partly_unexplained, never explained), the kind named
   and the held-out shrink of the proposed term.
+- clean: the calibration check, 50 effect-free cases (:data:`CLEAN_LENGTHS`: 24 runs of 20,
+  64, 65, 80, 200 or 400 gait cycles, or of 40 to 79 mixed; the start pose given exactly or
+  observed; one power-on session or sessions of 8 runs; tracker noise 0.3 cm / 0.5 deg,
+  0.5 / 1 or 1 / 2; with or without step noise), from the true table; a false flag is any
+  verdict other than no_significant_gap. Target: at most 1 of 50. ``python
+  bench/bench_diagnose.py --clean`` runs this part alone.
 
 Shrink is 1 - (held-out rollout end error after) / (before); the excess shrink divides by the
 part above the oracle's error (the true model's own error, tracker noise alone).
@@ -49,11 +55,16 @@ NAMES = [n for n in EFFECT_SPECS if n in BUILT_IN]
 NOISE = {"moderate": (0.5, 1.0), "high": (1.5, 3.0)}
 SEED = 2024
 KINDS = ("single", "pair", "null", "withheld", "single_high_noise", "table_error", "weak_short",
-         "null_step_noise", "single_step_noise", "outside")
+         "null_step_noise", "single_step_noise", "outside", "clean")
 LEVELS = 3  # magnitude levels of each outside kind
 STEP_NOISE = (0.3, 0.6)  # the robot's own step variability: cm on F and T, deg on dH
 WEAK = 0.25  # weak_short cases: a quarter of a moderate magnitude ...
 SHORT = (12, 30)  # ... on 12 runs of 30 gait cycles, with high tracker noise
+# the calibration check: run lengths (0: 40 to 79 mixed), tracker noise (cm, deg)
+CLEAN_LENGTHS = (20, 64, 65, 80, 200, 400, 0)
+CLEAN_NOISE = ((0.3, 0.5), (0.5, 1.0), (1.0, 2.0))
+CLEAN_RUNS = 24
+CLEAN_CASES = 50
 
 
 def _param_error(true, est) -> float:
@@ -84,14 +95,20 @@ def _weaker(effect: Effect, f: float) -> Effect:
 
 
 def _case(kind: str, index: int, effects, noise, library=None, perturb=False,
-          model_rows=None, size=(40, 60), step_noise=(0.0, 0.0), outside=None) -> dict:
+          model_rows=None, size=(40, 60), step_noise=(0.0, 0.0), outside=None,
+          design: dict | None = None) -> dict:
     rng = np.random.default_rng([SEED, KINDS.index(kind), index])
     world, truth = (None, None)
     if outside is not None:  # (name, level): a gap outside the library
         world, truth = OUTSIDE[outside[0]][1](rng, outside[1])
+    extra = {}
+    if design is not None:  # a clean case: run lengths, start pose, sessions
+        extra = {"lengths": design["lengths"], "start_exact": design["start_exact"],
+                 "runs_per_session": design["runs_per_session"]}
     rows, fit, hold = blind_case(rng, effects, n_runs=size[0], n_cycles=size[1],
                                  pos_noise_cm=noise[0], heading_noise_deg=noise[1],
-                                 perturb_table=perturb, step_noise=step_noise, perturb=world)
+                                 perturb_table=perturb, step_noise=step_noise, perturb=world,
+                                 **extra)
     order = sorted(r.run_id for r in fit + hold)  # the runs in the order they were made
     t0 = time.perf_counter()
     d = diagnose(GaitTable(rows if model_rows is None else model_rows), fit, hold, rng, library,
@@ -112,7 +129,9 @@ def _case(kind: str, index: int, effects, noise, library=None, perturb=False,
             "param_error": [_param_error(t, next((e for e in d.selected if e.name == t.name),
                                                  None)) for t in effects],
             "alike": d.selection.alike, "informative": d.informative, "notes": d.notes,
-            "wall_s": round(wall, 3), **_outside_figures(d, outside, truth)}
+            "wall_s": round(wall, 3), **_outside_figures(d, outside, truth),
+            "design": None if design is None else {k: v for k, v in design.items()
+                                                   if k != "lengths"}}
 
 
 def _outside_figures(d, outside, truth) -> dict:
@@ -126,6 +145,47 @@ def _outside_figures(d, outside, truth) -> dict:
             "proposal_family": prop.get("family"),
             "proposal_shrink": hold.get("shrink"),
             "proposal_shrink_over_library": hold.get("shrink_over_library")}
+
+
+def clean_design(i: int) -> dict:
+    """The i-th clean case's design: the factors cycle with coprime-ish periods (7 lengths,
+    2 starts, 2 session layouts, 3 tracker noises, 2 step noises), so 50 cases cover every
+    length with each start, session layout and noise level."""
+    length = CLEAN_LENGTHS[i % len(CLEAN_LENGTHS)]
+    if length:
+        lengths = [length] * CLEAN_RUNS
+    else:  # mixed lengths, drawn from the case's own seed
+        lengths = np.random.default_rng([SEED, 11, i]).integers(40, 80, CLEAN_RUNS).tolist()
+    return {"length": length or "40-79", "lengths": lengths, "start_exact": i % 2 == 0,
+            "runs_per_session": CLEAN_RUNS if (i // 2) % 2 == 0 else 8,
+            "noise": CLEAN_NOISE[i % 3], "step_noise": STEP_NOISE if (i // 3) % 2 else (0.0, 0.0)}
+
+
+def clean_cases(n: int = CLEAN_CASES) -> list[dict]:
+    """The calibration check: ``n`` effect-free cases (:func:`clean_design`)."""
+    out = []
+    for i in range(n):
+        dz = clean_design(i)
+        out.append(_case("clean", i, [], dz["noise"], step_noise=dz["step_noise"], design=dz))
+    return out
+
+
+def clean_summary(cases: list[dict]) -> dict:
+    """Flags on the clean cases: any verdict but no_significant_gap is a false flag."""
+    false = [c for c in cases if c["selected"] or c["verdict"] != "no_significant_gap"]
+    return {
+        "what": f"effect-free, {CLEAN_RUNS} runs per case: lengths {CLEAN_LENGTHS} (0: 40-79 "
+                "mixed), start exact or observed, one session or sessions of 8, tracker noise "
+                f"{CLEAN_NOISE}, step noise 0 or {STEP_NOISE}",
+        "cases": len(cases),
+        "flagged": len(false),
+        "partly_unexplained": sum(c["verdict"] == "partly_unexplained" for c in cases),
+        "selected_any": sum(bool(c["selected"]) for c in cases),
+        "false_flags": [{"design": c["design"], "verdict": c["verdict"],
+                         "selected": c["selected_effects"], "flags": c["flags"]}
+                        for c in false],
+        "max_diagnosis_s": round(float(max((c["wall_s"] for c in cases), default=0.0)), 3),
+    }
 
 
 def _rng_effects(rng, names):
@@ -187,6 +247,7 @@ def run(quick: bool = False) -> dict:
             for i in range(n_outside):
                 cases.append(_case("outside", len(cases), [], NOISE["moderate"],
                                    perturb=i % 2 == 1, outside=(name, level)))
+    cases += clean_cases(len(CLEAN_LENGTHS) if quick else CLEAN_CASES)
     return summarize(cases, quick)
 
 
@@ -211,6 +272,7 @@ def _frac(xs) -> float:
 
 def summarize(cases: list[dict], quick: bool) -> dict:
     by = {k: [c for c in cases if c["kind"] == k] for k in KINDS}
+    blind = [c for c in cases if c["kind"] != "clean"]  # timing as before the clean part
     singles = by["single"]
     per_effect = {}
     for name in NAMES:
@@ -301,8 +363,8 @@ def summarize(cases: list[dict], quick: bool) -> dict:
         "step_noise_median_shrink": (round(float(np.median(
             [c["shrink"] for c in by["single_step_noise"]])), 4)
             if by["single_step_noise"] else None),
-        "median_diagnosis_s": round(float(np.median([c["wall_s"] for c in cases])), 3),
-        "max_diagnosis_s": round(float(np.max([c["wall_s"] for c in cases])), 3),
+        "median_diagnosis_s": round(float(np.median([c["wall_s"] for c in blind])), 3),
+        "max_diagnosis_s": round(float(np.max([c["wall_s"] for c in blind])), 3),
         "failures": [c for c in singles if c["selected"][:1] != c["true_names"]],
         "single_uninformative": [{"true": c["true"], "selected": c["selected_effects"],
                                   "notes": c["notes"]} for c in singles if not c["informative"]],
@@ -343,7 +405,12 @@ def summarize(cases: list[dict], quick: bool) -> dict:
                           "description": c["description"], "proposal": c["proposal_family"],
                           "shrink": c["proposal_shrink"]} for c in out[::LEVELS]],
         }
+    clean = clean_summary(by["clean"])
+    res["clean"] = clean
     res["targets"] = {
+        "clean_flagged": {"value": clean["flagged"], "of": clean["cases"],
+                          "target": f"<= {max(1, clean['cases'] // CLEAN_CASES)}",
+                          "met": clean["flagged"] <= max(1, clean["cases"] // CLEAN_CASES)},
         "single_top1": {"value": top1, "target": ">= 0.95", "met": top1 >= 0.95},
         "null_false_positive": {"value": fp, "target": "<= 0.05", "met": fp <= 0.05},
         "single_median_shrink": {"value": shrink_med, "target": ">= 0.80",
@@ -370,4 +437,7 @@ if __name__ == "__main__":
     import json
     import sys
 
-    print(json.dumps(run(quick="--quick" in sys.argv), indent=1))
+    if "--clean" in sys.argv:
+        print(json.dumps(clean_summary(clean_cases()), indent=1))
+    else:
+        print(json.dumps(run(quick="--quick" in sys.argv), indent=1))

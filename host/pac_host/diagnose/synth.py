@@ -53,6 +53,8 @@ def world_runs(
     step_noise_cm: float = 0.0,
     step_noise_deg: float = 0.0,
     perturb: Callable[..., np.ndarray] | None = None,
+    lengths: Sequence[int] | None = None,
+    start_exact: bool = False,
 ) -> list[Run]:
     """Run each turn cycle for ``n_cycles`` gait cycles in the world and observe it.
 
@@ -64,10 +66,21 @@ def world_runs(
     (m, 3) of the m runs knowing the true poses (m, 3) before it: a world that depends on where
     the robot is (what no effect of the model may know), for testing the diagnosis on gaps
     outside its library; the runs are then integrated one gait cycle at a time.
+    ``lengths`` (one per run, each at most ``n_cycles``): runs of different lengths, run k
+    cut to ``lengths[k]`` gait cycles, the time since power-on counting the session's
+    earlier runs' lengths. ``start_exact``: the start pose is given (the robot placed on it),
+    not observed by the tracker.
     """
     ids, _ = expand(np.asarray(turn_cycles), n_cycles)
     m = len(ids)
     n0 = (np.arange(m) % runs_per_session) * n_cycles
+    if lengths is not None:
+        lens = np.asarray(lengths, dtype=np.int64)
+        if lens.shape != (m,) or lens.min() < 1 or lens.max() > n_cycles:
+            raise ValueError(f"lengths: {m} run lengths from 1 to {n_cycles} expected")
+        before = np.concatenate([[0], np.cumsum(lens)[:-1]])
+        session = np.arange(m) // runs_per_session
+        n0 = before - before[session * runs_per_session]
     body, world = step_moves(rows, ids, effects, n0, rng=rng)
     if step_noise_cm or step_noise_deg:
         body = body + rng.normal(size=body.shape) * np.array(
@@ -84,7 +97,11 @@ def world_runs(
             poses[:, i + 1] = integrate(poses[:, i], b[:, None], w)[:, -1]
     sd = np.array([pos_noise_cm, pos_noise_cm, heading_noise_deg])
     obs = poses + rng.normal(size=poses.shape) * sd
-    return [Run(f"run{k:03d}", obs[k, 0], ids[k], obs[k, 1:], int(n0[k])) for k in range(m)]
+    if start_exact:
+        obs[:, 0] = start
+    cut = [n_cycles] * m if lengths is None else [int(v) for v in lengths]
+    return [Run(f"run{k:03d}", obs[k, 0], ids[k, : cut[k]], obs[k, 1 : cut[k] + 1], int(n0[k]))
+            for k in range(m)]
 
 
 # Moderate magnitudes of each effect for blind cases: (sampler, stated range).
@@ -127,20 +144,29 @@ def blind_case(
     holdout_fraction: float = 0.3,
     step_noise: tuple[float, float] = (0.0, 0.0),
     perturb: Callable[..., np.ndarray] | None = None,
+    lengths: Sequence[int] | None = None,
+    start_exact: bool = False,
+    runs_per_session: int = 10,
 ) -> tuple[np.ndarray, list[Run], list[Run]]:
     """A true table, runs in a world with ``effects``, split into fitting and held-out runs.
 
     The table the diagnosis is given is the true table without the effects; returns
-    (rows, fitting runs, held-out runs).
+    (rows, fitting runs, held-out runs). ``lengths``: one run per entry, of that many gait
+    cycles (instead of ``n_runs`` of ``n_cycles``); ``start_exact`` and ``runs_per_session``
+    as in :func:`world_runs`.
     """
     from pac_host.diagnose.pipeline import split_runs
 
     rows = measured_table().rows
     if perturb_table:
         rows = perturbed_rows(rows, rng)
+    if lengths is not None:
+        n_runs, n_cycles = len(lengths), int(max(lengths))
     cycles = cga_turn_cycles(rng, n_runs)
     runs = world_runs(rows, effects, cycles, n_cycles, rng, pos_noise_cm, heading_noise_deg,
-                      step_noise_cm=step_noise[0], step_noise_deg=step_noise[1], perturb=perturb)
+                      runs_per_session, step_noise_cm=step_noise[0],
+                      step_noise_deg=step_noise[1], perturb=perturb, lengths=lengths,
+                      start_exact=start_exact)
     fit, hold = split_runs(runs, holdout_fraction, rng)
     return rows, fit, hold
 
