@@ -102,11 +102,17 @@ def _wrapped(text: str, width: int) -> str:
                      for line in text.split("\n"))
 
 
+def _figures(summary: dict) -> str:
+    """A y label's note on a noisy actual robot: the figures are expectations."""
+    figures = summary.get("figures", "one walk")
+    return "" if figures == "one walk" else f"\n{figures}"
+
+
 def _decorate(ax, summary: dict, title: str) -> None:
     ax.axhline(summary["optimum"], color="k", ls="--", lw=1,
                label="the experiment's optimum on the actual robot")
     _x_label(ax, progress_axis(summary["pal_config"]["search"], ())[1])
-    ax.set_ylabel("coverage fitness on the actual robot (3R + c)")
+    ax.set_ylabel("coverage fitness on the actual robot (3R + c)" + _figures(summary))
     ax.set_title(title)
     ax.set_ylim(bottom=0, top=summary["optimum"] + 2)
     ax.grid(alpha=0.3)
@@ -154,7 +160,8 @@ def robot_time(summary: dict, path: Path) -> Path:
                    label=f"{rt['target']:.0%} of the best known")
         ax.set_xlabel(label)
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("operational coverage on the actual robot (3R + c)")
+    axes[0].set_ylabel("operational coverage on the actual robot (3R + c)"
+                       + _figures(summary))
     axes[0].set_ylim(0, rt["best_known"] + 2)
     axes[0].legend(fontsize=7, loc="lower right")
     fig.suptitle("Operational coverage against robot time: median and range over seeds")

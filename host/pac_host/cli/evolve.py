@@ -182,6 +182,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            finish_moves=learn.finish_moves,
                            refine_effects=learn.refine_effects,
                            operational_evidence=learn.operational_evidence,
+                           search_noise=learn.search_noise,
                            shapes=learn.shapes)
         cfg.check()
     emu = emulator_options(sim, port)

@@ -192,6 +192,11 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
     plots = experiment_plots(summary, out_dir)
     comp = summary["comparison"]
     click.echo(f"optimum on the actual robot ({actual.name}): fitness {summary['optimum']}")
+    # on a noisy actual robot every coverage figure below is an expectation (one walk is luck)
+    each = "" if summary["figures"] == "one walk" else f" ({summary['figures']})"
+    if each:
+        click.echo(f"operational coverage figures: {summary['figures']} of the actual robot "
+                   "(log.jsonl: operational_expected, with its interval)")
     for m, s in comp["methods"].items():
         gen = s["mean_generation_reached"]
         vs = (f"; as good as the oracle on {s['matched_oracle']}/{s['seeds']} seeds (final "
@@ -200,7 +205,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
               if "matched_oracle" in s else "")
         click.echo(f"{m:>8}: {s['reached_optimum']}/{s['seeds']} seeds reached the optimum"
                    f"{f' (mean generation {gen:.0f})' if gen is not None else ''}; "
-                   f"mean final coverage {s['mean_final_coverage']:.2f}{vs}")
+                   f"mean final coverage {s['mean_final_coverage']:.2f}{each}{vs}")
     if "tests" in comp:
         t = comp["tests"]
         click.echo(f"reached optimum, Fisher exact p = {t['reached_optimum_fisher_exact_p']:.4g}; "
@@ -208,7 +213,7 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
                    f"mean coverage, Wilcoxon p = {t['mean_coverage_wilcoxon']['p_value']:.4g}")
     rt = summary["robot_time"]
     click.echo(f"best known {rt['best_known']} ({summary['best_known']['source']}); target "
-               f"{rt['target']:.0%} of it")
+               f"{rt['target']:.0%} of it{each}")
     for m, s in rt["methods"].items():
         med = s["median_punctuations_to_target"]
         click.echo(f"{m:>8}: reached the target on {s['reached_target']}/{s['seeds']} seeds, "

@@ -44,8 +44,12 @@ from pac_host.search import cga
 from pac_host.search.optimize import OptimizeConfig, run_chain
 
 # seed streams; STAGE_PLACED draws the start poses a run's final turn cycle is walked from,
-# STAGE_STEPS the actual robot's step noise in a run's tests (the same for each method of a seed)
-STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED, STAGE_STEPS = 0, 1, 2, 3, 4
+# STAGE_STEPS the actual robot's step noise in a run's tests (the same for each method of a
+# seed), STAGE_EXPECTED the fresh walks each punctuation's operational turn cycle is measured
+# on, on a noisy actual robot (by seed and punctuation: the same for each method, any --jobs)
+STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED, STAGE_STEPS, STAGE_EXPECTED = range(6)
+# fresh noisy walks of the actual robot behind each operational turn cycle's expected coverage
+EXPECTED_WALKS = 400
 METHODS = ("full", "partial", "oracle")
 # the optimum search's evaluations per run for the paper's 1000 generations; shorter runs get
 # proportionately fewer (optimum_evaluations_for), down to the floor
@@ -158,7 +162,10 @@ def pal_run(
     log_path: Path | None,
 ) -> dict:
     """One PAL run; each punctuation is appended to the log as it happens. For ``oracle`` the
-    CGA's model is the actual robot's table, unperturbed and never evolved."""
+    CGA's model is the actual robot's table, unperturbed and never evolved. On an actual robot
+    with step noise each punctuation's operational turn cycle is also measured by its expected
+    coverage (:func:`expected_on_robot`, logged as ``operational_expected``), and the run's
+    curve is that expectation, not the one walk (``walked``)."""
     fields = {**_pal_fields(cfg.pal), "method": method, "generations": cfg.generations}
     if method == "oracle":
         fields.update(method="partial", model_population=1, model_generations=0,
@@ -168,13 +175,20 @@ def pal_run(
     rng = _rng(cfg.base_seed, seed, STAGE_PAL)
     robot = pal.SimulatedRobot(actual, pcfg.budget, rng=_rng(cfg.base_seed, seed, STAGE_STEPS))
     state = pal.initial_state(model, rng, pcfg, init_pop)
-    curve: list[tuple[int, int]] = []
+    curve: list[tuple[int, int | float]] = []
+    walked: list[int] = []
     seconds: list[float] = []
     truth = effective_rows(actual.rows, actual.effects)
 
     def log(st: pal.PALState, record: dict) -> None:
         record["method"] = method
-        curve.append((record["generation"], record["operational_fitness"]))
+        walked.append(record["operational_fitness"])
+        figure = record["operational_fitness"]
+        if not actual.step_noise.is_zero():
+            record["operational_expected"] = expected_on_robot(actual, st.operational, seed,
+                                                               len(curve), cfg)
+            figure = record["operational_expected"]["mean"]
+        curve.append((record["generation"], figure))
         seconds.append(record["robot_seconds"])
         record["model_error"] = _model_error(effective_rows(st.models[0], st.model_effects), truth)
         record["model"] = st.models[0].round(6).tolist()
@@ -190,6 +204,7 @@ def pal_run(
         "method": method,
         "generations": [g for g, _ in curve],
         "coverage": [f for _, f in curve],
+        **({} if actual.step_noise.is_zero() else {"walked": walked}),
         "robot_hours": _hours(seconds),
         "operational": format_turn_cycle(state.operational),
         "placed": _placed(actual, state.operational, seed, cfg),
@@ -197,6 +212,30 @@ def pal_run(
                                           truth),
         "final_model": state.models[0].round(6).tolist(),
     }
+
+
+def expected_on_robot(actual: GaitTable, turn_cycle: np.ndarray, seed: int, punctuation: int,
+                      cfg: ExperimentConfig) -> dict:
+    """What a turn cycle delivers on the noisy actual robot: its mean fitness over
+    :data:`EXPECTED_WALKS` fresh noisy walks (the compiled kernel,
+    :mod:`pac_host.coverage.noisy`) drawn from the run's seed and ``punctuation`` (0, 1, ...),
+    with the mean's 95% interval: ``{"mean", "interval", "walks"}``."""
+    from pac_host.coverage.noisy import NoisyWalks, draw_normals
+    from pac_host.learning.operational import Estimate
+
+    z = draw_normals(_rng(cfg.base_seed, seed, STAGE_EXPECTED, punctuation), EXPECTED_WALKS,
+                     cfg.pal.budget)
+    fit = NoisyWalks(actual.rows, actual.step_noise, z, cfg.pal.budget,
+                     actual.effects).figures(np.asarray(turn_cycle)[None])[2, 0]
+    fit = fit.astype(np.float64)
+    return Estimate(float(fit.mean()), float(fit.std(ddof=1) / np.sqrt(fit.size)),
+                    int(fit.size)).to_json()
+
+
+def figures_of(actual: GaitTable) -> str:
+    """What the experiment's coverage figures are: one walk, or on a noisy actual robot the
+    expectation over fresh walks."""
+    return "one walk" if actual.step_noise.is_zero() else f"expected over {EXPECTED_WALKS} walks"
 
 
 def _hours(seconds: Sequence[float]) -> list[float]:
@@ -212,8 +251,9 @@ def punctuations_to(coverage: Sequence[int], target: float) -> int | None:
     return None
 
 
-def robot_time_report(runs: list[dict], best_known: int) -> dict:
-    """Per method: punctuations and robot hours to 90% of the best known, and where runs end.
+def robot_time_report(runs: list[dict], best_known: int, figures: str = "one walk") -> dict:
+    """Per method: punctuations and robot hours to 90% of the best known, and where runs end
+    (each run's ``coverage``: ``figures`` says whether one walk or an expectation).
 
     Seeds that never reach the target count as not reached (beyond any figure) in the
     median, so a median over seeds most of which missed is reported as None.
@@ -247,7 +287,7 @@ def robot_time_report(runs: list[dict], best_known: int) -> dict:
                                          3),
         }
     return {"best_known": best_known, "target": TARGET, "final_target": FINAL_TARGET,
-            "methods": out}
+            "figures": figures, "methods": out}
 
 
 def _model_error(model: np.ndarray, truth: np.ndarray) -> list[dict]:
@@ -478,7 +518,8 @@ def run_experiment(
         "runs": results,
         "comparison": compare(results, cfg, optimum),
         "best_known": best,
-        "robot_time": robot_time_report(results, best["fitness"]),
+        "figures": figures_of(actual),
+        "robot_time": robot_time_report(results, best["fitness"], figures_of(actual)),
     }
     write_atomic(out_dir / "summary.json", json.dumps(summary, indent=1) + "\n")
     return summary
@@ -527,9 +568,12 @@ def _placed(actual: GaitTable, operational: np.ndarray, seed: int, cfg: Experime
 def _result_from_log(recs: list[dict], seed: int, method: str, actual: GaitTable,
                      cfg: ExperimentConfig) -> dict:
     recs = sorted(recs, key=lambda r: r["generation"])
+    noisy = not actual.step_noise.is_zero()
     return {"seed": seed, "method": method,
             "generations": [r["generation"] for r in recs],
-            "coverage": [r["operational_fitness"] for r in recs],
+            "coverage": [r["operational_expected"]["mean"] if noisy
+                         else r["operational_fitness"] for r in recs],
+            **({"walked": [r["operational_fitness"] for r in recs]} if noisy else {}),
             "robot_hours": _hours([r.get("robot_seconds", 0.0) for r in recs]),
             "operational": recs[-1]["operational"],
             "placed": _placed(actual, parse_turn_cycle(recs[-1]["operational"]), seed, cfg),

@@ -1,7 +1,13 @@
 """The anytime search of a PAL punctuation (``cfg.search`` other than "cga"): searches the
 model while the robot walks the tests, then spends its budget on the model the tests have
 corrected (:class:`_AnytimeSearch`), and ranks turn cycles on a model as that search compares
-them (:func:`_ranking`)."""
+them (:func:`_ranking`).
+
+With ``search_noise`` and the robot's step noise estimated clearly above zero, the search ranks
+turn cycles by their mean fitness over :data:`SEARCH_WALKS` noisy walks of the model with that
+noise, common random numbers drawn each punctuation from a seed the search's own generator
+gives (kept with the carried search as ``walks_seed``, so the ranking between punctuations and
+a resumed run walk the same normals: :func:`search_walks`)."""
 
 from __future__ import annotations
 
@@ -14,7 +20,13 @@ from pac_host.coverage import START_POSE, Scorer, format_turn_cycle
 from pac_host.learning.config import PALConfig
 from pac_host.learning.state import PALState
 from pac_host.model.effects import Effect
+from pac_host.model.step_noise import StepNoise
 from pac_host.search import cga, shapes
+from pac_host.search.optimize import WALKS_DEFAULT
+
+# noisy walks of the model a turn cycle is scored over when the search knows the robot's step
+# noise: optimize's (measured there: 32 walks found higher expected sweeps than 64 in one time)
+SEARCH_WALKS = WALKS_DEFAULT
 
 
 class _AnytimeSearch:
@@ -27,6 +39,8 @@ class _AnytimeSearch:
         self.state, self.rng, self.cfg = state, rng, cfg
         self.pop = state.cga_pop
         self.chain = state.search
+        # the step noise the search walks the model with (None: one noise-free walk)
+        self.noise = state.step_noise if cfg.search_noise else None
         self.walking_evaluations: int | None = None
         self.walking_best = -1
         self.record: dict = {}
@@ -48,6 +62,7 @@ class _AnytimeSearch:
         from pac_host.search.local import Chain
 
         carried = None if self.chain is None else Chain.from_json(self.chain)
+        walks = search_walks(self.noise, self._walks_seed(self.noise), self.cfg)
         self.pop, rec, chain = anytime.advance(
             self.state.models[0], self.pop, None, self.rng, self.cfg.budget,
             self.state.model_effects, self.cfg.search,
@@ -55,19 +70,26 @@ class _AnytimeSearch:
             placement=self.cfg.placement_error(),
             models=_pooled_models(self.state.models, self.cfg),
             length_cost=self.cfg.kick_length_cost, shorten_after=self.cfg.shorten_after,
-            windows=self.cfg.shorten_windows)
+            windows=self.cfg.shorten_windows, **walks)
         self.chain = chain.to_json()
         self.walking_evaluations = rec["evaluations"]
         self.walking_best = rec.get("best_score", -1)
 
+    def _walks_seed(self, noise: StepNoise | None) -> int | None:
+        """A fresh seed for the noisy walks from the search's generator (None without noise:
+        no draw, so a noise-free search's stream is today's)."""
+        return None if noise is None else int(self.rng.integers(2**63))
+
     def on_corrected(self, models: np.ndarray, effects: Sequence[Effect],
-                     operational: np.ndarray) -> None:
+                     operational: np.ndarray, noise: StepNoise | None = None) -> None:
         """Spend the budget on the corrected model ``models[0]``, from the population ranked
         on it, its sources the library and the search's best and the ``operational`` turn
         cycle from the model before (one the same as another adds no start:
         :func:`pac_host.search.shapes.starts`); with ``cfg.search_chains`` above one, the
         other chains each from its own point (:meth:`_other_chains`); with ``cfg.explore``, a
-        share of it on ``models[1]`` (a draw from the posterior), from the best found."""
+        share of it on ``models[1]`` (a draw from the posterior), from the best found. With
+        ``noise`` (the robot's step noise, clearly estimated) and ``cfg.search_noise``, every
+        turn cycle is scored over the same fresh noisy walks (:func:`search_walks`)."""
         from pac_host.search import anytime
         from pac_host.search.local import Chain
 
@@ -85,7 +107,10 @@ class _AnytimeSearch:
                 return library.sources(), carried
             return library.sources() + carried, []
 
-        rank, _ = _ranking(models, self.pop, self.cfg, effects)
+        noise = noise if self.cfg.search_noise else None
+        seed = self._walks_seed(noise)
+        walks = search_walks(noise, seed, self.cfg)
+        rank, _ = _ranking(models, self.pop, self.cfg, effects, noise, seed)
         pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
         others = [Chain.from_json(doc) for doc in (self.chain or {}).get("others", [])]
@@ -104,11 +129,14 @@ class _AnytimeSearch:
                                    length_cost=self.cfg.kick_length_cost,
                                    shorten_after=self.cfg.shorten_after,
                                    windows=self.cfg.shorten_windows, carried=carried,
-                                   finish=self.cfg.finish_moves)
+                                   finish=self.cfg.finish_moves, **walks)
 
         self.pop, rec, chain = search(self.rng, carried, (self.pop[0], operational))
         self.chain = chain.to_json()
         self.record = {"method": self.cfg.search, **rec}
+        if seed is not None:  # what the ranking between punctuations walks again
+            self.chain["walks_seed"] = seed
+            self.record.update(step_noise=noise.to_json(), walks=SEARCH_WALKS)
         if self.cfg.search_chains > 1:
             self._other_chains(search, others)
         if explore > 0:
@@ -117,7 +145,7 @@ class _AnytimeSearch:
                                              placement=self.cfg.placement_error(),
                                              length_cost=self.cfg.kick_length_cost,
                                              shorten_after=self.cfg.shorten_after,
-                                             windows=self.cfg.shorten_windows)
+                                             windows=self.cfg.shorten_windows, **walks)
             self.chain["explore"] = found[0].tolist()
             self.record.update(explore=format_turn_cycle(found[0]),
                                explore_evaluations=done["evaluations"])
@@ -168,12 +196,46 @@ def _pooled_models(models: np.ndarray, cfg: PALConfig) -> np.ndarray | None:
     return models[1:cfg.search_models] if cfg.search_models > 1 else None
 
 
-def _ranking(models: np.ndarray, pop: np.ndarray, cfg: PALConfig, effects: Sequence[Effect]
+def search_walks(noise: StepNoise | None, seed: int | None, cfg: PALConfig) -> dict:
+    """The noisy walks a search with step ``noise`` scores every turn cycle over, as
+    :func:`pac_host.search.anytime.advance`'s arguments: :data:`SEARCH_WALKS` walks' normals
+    and, with a placement error, their start poses, all from ``seed``; {} without noise."""
+    if noise is None or seed is None:
+        return {}
+    from pac_host.coverage.noisy import draw_normals
+
+    rng = np.random.default_rng(seed)
+    normals = draw_normals(rng, SEARCH_WALKS, cfg.budget)
+    error = cfg.placement_error()
+    return {"step_noise": noise, "normals": normals,
+            "walk_starts": None if error is None else error.draw(SEARCH_WALKS, rng)}
+
+
+def carried_walks(state: PALState, cfg: PALConfig) -> tuple[StepNoise | None, int | None]:
+    """The step noise and walks' seed the state's carried search last ranked with (None,
+    None: a noise-free search)."""
+    seed = (state.search or {}).get("walks_seed")
+    if not cfg.search_noise or state.step_noise is None or seed is None:
+        return None, None
+    return state.step_noise, int(seed)
+
+
+def _ranking(models: np.ndarray, pop: np.ndarray, cfg: PALConfig, effects: Sequence[Effect],
+             noise: StepNoise | None = None, walks_seed: int | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
     """What an anytime search ranks turn cycles (P, 9, 2) by on the model ``models[0]`` (their
     coverage scores from the start, or with a placement error or pooled models their search
-    scores pooled over the walks, as the search compares them), and their coverage scores on
-    the model from the start."""
+    scores pooled over the walks, or with step ``noise`` their mean fitness over the walks of
+    ``walks_seed`` (:func:`search_walks`), as the search compares them), and their coverage
+    scores on the model from the start."""
+    walks = search_walks(noise, walks_seed, cfg)
+    if walks:
+        from pac_host.coverage.noisy import NoisyScorer
+
+        starts = START_POSE if walks["walk_starts"] is None else walks["walk_starts"]
+        rank = NoisyScorer(models[0], noise, walks["normals"], cfg.budget, effects,
+                           starts).both(pop)[0]
+        return rank, cga.fitness(models[0], pop, cfg.budget, effects)
     error, pooled = cfg.placement_error(), _pooled_models(models, cfg)
     if error is None and pooled is None:
         fit = cga.fitness(models[0], pop, cfg.budget, effects)

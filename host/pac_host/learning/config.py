@@ -114,6 +114,13 @@ class PALConfig:
     # replaced whenever one walk beats the last (False, runs saved before it). On a robot
     # without step noise the two are one rule (pac_host.learning.operational)
     operational_evidence: bool = False
+    # With an anytime search and the "fit" correction: whether, once the robot's step noise is
+    # estimated clearly above zero, the search ranks turn cycles by their expected coverage
+    # over noisy walks of the model with that noise (common random numbers drawn from the
+    # search's own generator; pac_host.coverage.noisy) and the tests' predictions are
+    # expectations (True), or by one noise-free walk (False, runs saved before it and the
+    # paper). Without a clear estimate the search is the noise-free one, figure for figure
+    search_noise: bool = False
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -164,6 +171,9 @@ class PALConfig:
         if self.explore > 0 and self.search == "cga":
             raise InputError("--explore needs an anytime profile (the paper's CGA searches one "
                              "model)")
+        if self.search_noise and self.search == "cga":
+            raise InputError("search_noise needs an anytime profile (the paper's CGA scores "
+                             "one noise-free walk)")
         if self.placement_error() is not None and self.search == "cga":
             raise InputError("--placement-error needs an anytime profile (the paper's CGA "
                              "scores from the exact start)")

@@ -32,12 +32,17 @@ from dataclasses import replace
 
 import numpy as np
 
-from pac_host.coverage import fitness_of_score, format_turn_cycle, simulate
+from pac_host.coverage import START_POSE, fitness_of_score, format_turn_cycle, simulate
 from pac_host.diagnose.noise import StepNoiseFit
 from pac_host.errors import InputError
 from pac_host.learning import model_fit, model_ga
 from pac_host.learning import operational as operational_rule
-from pac_host.learning.anytime_search import _AnytimeSearch, _ranking
+from pac_host.learning.anytime_search import (
+    _AnytimeSearch,
+    _ranking,
+    carried_walks,
+    search_walks,
+)
 from pac_host.learning.config import (
     CORRECTIONS,
     OPERATIONAL,
@@ -117,8 +122,7 @@ def punctuate(
     JSON-ready record of what happened.
     """
     tests = operational_rule.with_repeat(choose_tests(state, rng, cfg), state.repeat)
-    model_rows = state.models[0]
-    predicted = simulate(model_rows, tests, cfg.budget, state.model_effects)
+    predicted = _predicted(state, tests, cfg)
     search = None
     if cfg.search != "cga":  # at the last punctuation too: a run carried on needs its result
         search = _AnytimeSearch(state, np.random.default_rng(rng.integers(2**63)), cfg)
@@ -173,11 +177,7 @@ def punctuate(
         "method": cfg.method,
         "tests": [format_turn_cycle(t) for t in tests],
         "observed": [r.figures() for r in results],
-        "predicted": [
-            {"blocks_covered": int(c), "blocks_covered_once": int(o), "fitness": int(f)}
-            for c, o, f in zip(predicted.blocks_covered, predicted.blocks_covered_once,
-                               predicted.fitness, strict=True)
-        ],
+        "predicted": predicted,
         "model_fitness": "steps" if cfg.correction == "fit" else cfg.model_fitness,
         "correction": cfg.correction,
         "model_error_before": _number(error_before),
@@ -197,13 +197,38 @@ def punctuate(
         record["test_estimates"] = [estimates[operational_rule.key(t)].to_json() for t in tests]
         record["repeat"] = None if repeat is None else operational_rule.key(repeat)
     pop, carried = state.cga_pop, state.search
+    # search_noise: the step noise the search walks the model with (clear estimates only)
+    noise = (noise_fit.noise if cfg.search_noise and noise_fit is not None and noise_fit.clear()
+             else None)
     if search is not None:
-        search.on_corrected(models, model_effects, operational)
+        search.on_corrected(models, model_effects, operational, noise)
         pop, carried = search.pop, search.chain
         record["search"] = search.record
     new = PALState(state.generation, pop, models, tuple(model_effects), operational,
-                   op_score, op_fit, state.base, observed, carried, *structure, walks, repeat)
+                   op_score, op_fit, state.base, observed, carried, *structure, walks, repeat,
+                   noise)
     return new, record
+
+
+def _predicted(state: PALState, tests: np.ndarray, cfg: PALConfig) -> list[dict]:
+    """The model's figures for the tests: one noise-free walk from the start, or with
+    ``search_noise`` and a clear step noise estimate their means over the noisy walks the
+    search last ranked with (each entry says over how many walks)."""
+    noise, seed = carried_walks(state, cfg)
+    if noise is None:
+        p = simulate(state.models[0], tests, cfg.budget, state.model_effects)
+        return [{"blocks_covered": int(c), "blocks_covered_once": int(o), "fitness": int(f)}
+                for c, o, f in zip(p.blocks_covered, p.blocks_covered_once, p.fitness,
+                                   strict=True)]
+    from pac_host.coverage.noisy import NoisyWalks
+
+    walks = search_walks(noise, seed, cfg)
+    starts = walks["walk_starts"]
+    fig = NoisyWalks(state.models[0], noise, walks["normals"], cfg.budget, state.model_effects,
+                     START_POSE if starts is None else starts).figures(tests).mean(axis=2)
+    return [{"blocks_covered": round(float(c), 3), "blocks_covered_once": round(float(o), 3),
+             "fitness": round(float(f), 3), "expected_over_walks": len(walks["normals"])}
+            for c, o, f in zip(fig[0], fig[1], fig[2], strict=True)]
 
 
 def _walked(state: PALState, tests: np.ndarray, results: list[TestResult]
@@ -331,7 +356,8 @@ def advance_cga(state: PALState, generations: int, rng: np.random.Generator,
     With an anytime search the turn cycles were searched at the punctuation, on the model it
     made: this only ranks them on that model, and counts the generations."""
     if cfg.search != "cga":
-        rank, fit = _ranking(state.models, state.cga_pop, cfg, state.model_effects)
+        rank, fit = _ranking(state.models, state.cga_pop, cfg, state.model_effects,
+                             *carried_walks(state, cfg))
         order = np.argsort(-rank, kind="stable")
         state = replace(state, cga_pop=state.cga_pop[order],
                         generation=state.generation + generations)

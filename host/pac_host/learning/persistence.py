@@ -34,6 +34,7 @@ def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
         "structure_runs": state.structure_runs,
         "walks": {k: list(v) for k, v in state.walks.items()},
         "repeat": None if state.repeat is None else state.repeat.tolist(),
+        "step_noise": None if state.step_noise is None else state.step_noise.to_json(),
         "rng": rng.bit_generator.state,
     }
 
@@ -52,6 +53,8 @@ def _search_from_json(doc) -> dict | None:
         out["others"] = [Chain.from_json(c).to_json() for c in others]
     if doc.get("explore") is not None:  # the best on a posterior draw, the next test
         out["explore"] = np.asarray(doc["explore"], dtype=np.int64).reshape(-1, 2).tolist()
+    if doc.get("walks_seed") is not None:  # the noisy walks it last ranked with
+        out["walks_seed"] = int(doc["walks_seed"])
     return out
 
 
@@ -67,6 +70,7 @@ def _walks_from_json(doc) -> dict[str, tuple[int, ...]]:
 def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
     """Inverse of :func:`state_to_json`."""
     from pac_host.model.effects import effect_from_json
+    from pac_host.model.step_noise import step_noise_from_json
     from pac_host.model.table import table_from_json
 
     if not isinstance(doc, dict) or doc.get("format") != "pac-pal-state/1":
@@ -93,6 +97,8 @@ def state_from_json(doc: dict) -> tuple[PALState, np.random.Generator]:
             _walks_from_json(doc.get("walks")),  # states saved before it: none kept
             None if doc.get("repeat") is None
             else np.array(doc["repeat"], dtype=np.int64).reshape(-1, 2),
+            None if doc.get("step_noise") is None  # states saved before it: none
+            else step_noise_from_json(doc["step_noise"], "PAL state step_noise"),
         )
     except (KeyError, TypeError, ValueError) as e:
         raise InputError(f"PAL state is incomplete or malformed ({e})") from None

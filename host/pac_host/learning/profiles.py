@@ -36,7 +36,9 @@ and
   Once the robot's step noise is estimated clearly above zero, the operational turn cycle is
   chosen on all its walks and the model's prediction, not on one walk
   (``operational_evidence``, :mod:`pac_host.learning.operational`); without step noise the
-  rule is the last-walk one, figure for figure.
+  rule is the last-walk one, figure for figure. The search then ranks turn cycles by their
+  expected coverage over noisy walks of the model with the estimated noise (``search_noise``,
+  :mod:`pac_host.learning.anytime_search`), and the tests' predictions are expectations.
 
 Other settings (e.g. of the model GA) may be added to a profile as further overrides; a key
 must name a ``PALConfig`` field.
@@ -57,7 +59,7 @@ PROFILES: dict[str, dict] = {
                 "explore": 0.25, "search_chains": 8, "kick_length_cost": SHORTER,
                 "shorten_after": SHORTEN_AFTER, "shorten_windows": True,
                 "library_restarts": True, "finish_moves": True, "refine_effects": True,
-                "operational_evidence": True},
+                "operational_evidence": True, "search_noise": True},
 }
 DEFAULT = "default"
 # how an experiment establishes the optimum on the actual robot, per profile

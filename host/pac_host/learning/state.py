@@ -9,6 +9,7 @@ import numpy as np
 
 from pac_host.learning import model_ga
 from pac_host.learning.config import PALConfig
+from pac_host.model.step_noise import StepNoise
 from pac_host.model.table import GaitTable
 from pac_host.search import cga, shapes
 from pac_host.search.kicks import loop_table
@@ -36,6 +37,10 @@ class PALState:
     # the turn cycle a decision on the operational one asked to walk again at the next
     # punctuation (operational_evidence), None: no repeat asked
     repeat: np.ndarray | None = None
+    # the robot's step noise as the last correction estimated it, when clearly above zero
+    # (search_noise: what the search and the tests' predictions walk the model with), None:
+    # none clear, or not searched with
+    step_noise: StepNoise | None = None
 
 
 def initial_state(

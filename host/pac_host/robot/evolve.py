@@ -87,6 +87,7 @@ class EvolveConfig:
     refine_effects: bool = pal.PALConfig.refine_effects  # runs saved before it: False
     # runs saved before it: False
     operational_evidence: bool = pal.PALConfig.operational_evidence
+    search_noise: bool = pal.PALConfig.search_noise  # runs saved before it: False
 
     def check(self) -> None:
         if self.method not in ("partial", "full"):
@@ -120,6 +121,7 @@ class EvolveConfig:
             shorten_windows=self.shorten_windows, library_restarts=self.library_restarts,
             finish_moves=self.finish_moves, refine_effects=self.refine_effects,
             operational_evidence=self.operational_evidence,
+            search_noise=self.search_noise and self.search != "cga",
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 

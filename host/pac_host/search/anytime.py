@@ -18,6 +18,7 @@ import numpy as np
 from pac_host.coverage import DEFAULT_BUDGET
 from pac_host.coverage.placement import PlacementError
 from pac_host.model.effects import Effect
+from pac_host.model.step_noise import StepNoise
 from pac_host.search.local import Chain, Objective
 from pac_host.search.shapes import Source
 
@@ -37,7 +38,10 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
             shorten_after: int = 0,
             windows: bool = True,
             carried: Sequence[Source] = (),
-            finish: bool = False) -> tuple[np.ndarray, dict, Chain]:
+            finish: bool = False,
+            step_noise: StepNoise | None = None,
+            normals: np.ndarray | None = None,
+            walk_starts: np.ndarray | None = None) -> tuple[np.ndarray, dict, Chain]:
     """Spend ``evaluations`` on improving the turn cycles of model ``rows``.
 
     ``evaluations`` None: until ``cancelled`` says stop (it must be given then).
@@ -62,6 +66,10 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     given (:attr:`~pac_host.search.local.Chain.overrun`; a budget it owes whole is skipped), so
     over a run it spends the budgets given; cut at the budget, a move that costs about one (a
     shorter-window try scores some 240,000 evaluations) is begun and lost every punctuation.
+    With ``step_noise`` each turn cycle is scored by its mean fitness over noisy walks of
+    ``rows`` drawn with ``normals`` (K, budget, 3) from ``walk_starts`` (K, 3; None: the start
+    pose), the same walks for every turn cycle (:class:`~pac_host.search.local.Objective`; an
+    evaluation is one walk); ``placement`` and ``models`` are then not used.
     """
     if method not in METHODS:
         raise ValueError(f"unknown search {method!r}")
@@ -70,8 +78,11 @@ def advance(rows: np.ndarray, pop: np.ndarray, evaluations: int | None,
     chain = Chain(pop[0].copy(), starts=1) if chain is None else replace(chain)
     finish = finish and evaluations is not None  # a search without a budget is cut anyway
     limit = evaluations - chain.overrun if finish else evaluations
+    noisy = step_noise is not None
     objective = Objective(rows, budget, effects, limit=None if limit is None else max(limit, 0),
-                          cancelled=cancelled, placement=placement, models=models, finish=finish)
+                          cancelled=cancelled, placement=None if noisy else placement,
+                          models=None if noisy else models, finish=finish,
+                          step_noise=step_noise, normals=normals, walk_starts=walk_starts)
     if limit is None or limit > 0:
         chain.run(objective, rng, PATIENCE, shapes=shapes, length_cost=length_cost,
                   shorten_after=shorten_after, windows=windows, carried=carried)

@@ -1,0 +1,211 @@
+"""PAL on a noisy robot: the anytime search walks the model with the estimated step noise
+(``search_noise``), the noise estimate is carried and resumed, and the experiment measures each
+punctuation's operational turn cycle by its expected coverage on the noisy actual robot."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pac_host.coverage import parse_turn_cycle, simulate
+from pac_host.coverage.noisy import NoisyWalks, draw_normals
+from pac_host.experiments import experiment as ex
+from pac_host.learning import anytime_search, pal, profiles
+from pac_host.learning.anytime_search import SEARCH_WALKS, _AnytimeSearch
+from pac_host.learning.config import PALConfig
+from pac_host.model import measured_table, shifted_table
+from pac_host.model.step_noise import parse_step_noise
+from pac_host.search import anytime
+from pac_host.search.cga import random_population
+
+NOISE = parse_step_noise("0.5,2")
+
+
+def small(**over) -> PALConfig:
+    """The default profile with a search small enough for a test."""
+    return replace(profiles.apply("default", PALConfig()), search_evaluations=4000,
+                   search_chains=2, cga_population=16, **over)
+
+
+def first_state(cfg: PALConfig) -> pal.PALState:
+    pop = random_population(np.random.default_rng(0), cfg.cga_population)
+    return pal.initial_state(measured_table(), np.random.default_rng(1), cfg, pop)
+
+
+@pytest.fixture(scope="module")
+def noisy_run():
+    """Two punctuations of the default profile on a noisy shifted robot, then the ranking."""
+    cfg = small()
+    robot = pal.SimulatedRobot(shifted_table().with_step_noise(NOISE),
+                               rng=np.random.default_rng(5))
+    rng = np.random.default_rng(2)
+    s0 = first_state(cfg)
+    s1, r1 = pal.punctuate(s0, robot, rng, cfg)
+    ranked, _ = pal.advance_cga(s1, cfg.interval, rng, cfg)
+    s2, r2 = pal.punctuate(ranked, robot, rng, cfg)
+    return cfg, s1, r1, ranked, s2, r2
+
+
+def test_the_default_profile_searches_with_noise_and_the_paper_does_not():
+    assert profiles.apply("default", PALConfig()).search_noise
+    assert not profiles.apply("paper", PALConfig()).search_noise
+    assert not PALConfig().search_noise  # runs saved before it
+
+
+def test_a_clear_estimate_makes_the_search_walk_the_model_with_it(noisy_run):
+    _, s1, r1, ranked, s2, r2 = noisy_run
+    assert r1["step_noise"]["clear"]
+    assert s1.step_noise is not None and s1.search["walks_seed"] >= 0
+    assert r1["search"]["walks"] == SEARCH_WALKS
+    assert r1["search"]["step_noise"] == s1.step_noise.to_json()
+    # the first tests were chosen with no estimate: one noise-free walk predicted
+    assert all(isinstance(p["fitness"], int) and "expected_over_walks" not in p
+               for p in r1["predicted"])
+    # then the predictions are expectations over the search's walks
+    assert all(p["expected_over_walks"] == SEARCH_WALKS for p in r2["predicted"])
+    tests = np.array([[[int(v) for v in g.split(":")] for g in t.split(",")] for t in
+                      r2["tests"]])
+    walks = anytime_search.search_walks(ranked.step_noise, ranked.search["walks_seed"],
+                                        noisy_run[0])
+    fig = NoisyWalks(ranked.models[0], ranked.step_noise, walks["normals"], 200,
+                     ranked.model_effects).figures(tests[:1])
+    assert r2["predicted"][0]["fitness"] == round(float(fig[2, 0].mean()), 3)
+
+
+def test_the_ranking_between_punctuations_keeps_the_noisy_searchs_best_first(noisy_run):
+    _, s1, _, ranked, _, _ = noisy_run
+    assert np.array_equal(ranked.cga_pop[0], s1.cga_pop[0])
+    noise, seed = anytime_search.carried_walks(s1, noisy_run[0])
+    rank, fit = anytime_search._ranking(s1.models, s1.cga_pop, noisy_run[0],
+                                        s1.model_effects, noise, seed)
+    plain, _ = anytime_search._ranking(s1.models, s1.cga_pop, noisy_run[0], s1.model_effects)
+    assert not np.array_equal(rank, plain)  # the expectation ranks, not one walk
+    assert np.array_equal(fit, plain)  # the second figure stays the noise-free score
+
+
+def _advanced(cfg: PALConfig, noise, monkeypatch) -> tuple[list[dict], _AnytimeSearch]:
+    """The keyword arguments every anytime.advance call of one on_corrected got."""
+    calls: list[dict] = []
+    real = anytime.advance
+
+    def spy(*args, **kw):
+        calls.append(kw)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(anytime, "advance", spy)
+    state = first_state(cfg)
+    search = _AnytimeSearch(state, np.random.default_rng(3), cfg)
+    search.on_corrected(state.models, state.model_effects, state.operational, noise)
+    return calls, search
+
+
+def test_the_search_objective_is_noisy_only_with_the_setting_and_an_estimate(monkeypatch):
+    on, with_noise = _advanced(small(), NOISE, monkeypatch)
+    assert on and all(kw["step_noise"] is NOISE for kw in on)
+    assert all(kw["normals"].shape == (SEARCH_WALKS, 200, 3) for kw in on)
+    assert all(np.array_equal(kw["normals"], on[0]["normals"]) for kw in on)  # shared walks
+    off, without = _advanced(small(search_noise=False), NOISE, monkeypatch)
+    none, no_estimate = _advanced(small(), None, monkeypatch)
+    for calls in (off, none):
+        assert calls and all("step_noise" not in kw for kw in calls)
+    # off, or no estimate: today's search, draw for draw
+    assert without.record == no_estimate.record and without.chain == no_estimate.chain
+    assert np.array_equal(without.pop, no_estimate.pop)
+    assert with_noise.record != without.record and "walks_seed" not in without.chain
+
+
+def test_the_noise_estimate_and_the_walks_are_saved_and_resumed(noisy_run):
+    _, s1, *_ = noisy_run
+    rng = np.random.default_rng(9)
+    doc = json.loads(json.dumps(pal.state_to_json(s1, rng)))
+    back, rng2 = pal.state_from_json(doc)
+    assert back.step_noise == s1.step_noise and back.search == s1.search
+    assert rng2.integers(1 << 30) == rng.integers(1 << 30)
+    del doc["step_noise"]  # a state saved before it
+    assert pal.state_from_json(doc)[0].step_noise is None
+
+
+def test_a_resumed_noisy_run_continues_the_same(noisy_run):
+    cfg, s1, *_ = noisy_run
+
+    def onward(state: pal.PALState) -> dict:
+        robot = pal.SimulatedRobot(shifted_table().with_step_noise(NOISE),
+                                   rng=np.random.default_rng(11))
+        rng = np.random.default_rng(12)
+        return pal.punctuate(pal.advance_cga(state, cfg.interval, rng, cfg)[0], robot, rng,
+                             cfg)[1]
+
+    back, _ = pal.state_from_json(json.loads(json.dumps(
+        pal.state_to_json(s1, np.random.default_rng(0)))))
+    assert onward(back) == onward(s1)
+
+
+# --- the experiment ------------------------------------------------------------------------
+
+def experiment_cfg() -> ex.ExperimentConfig:
+    return ex.ExperimentConfig(seeds=1, generations=40, methods=("partial",),
+                               initial_generations=10, optimum_runs=1,
+                               optimum_search="optimize", optimum_evaluations=10_000,
+                               pal=small())
+
+
+@pytest.fixture(scope="module")
+def noisy_experiment(tmp_path_factory):
+    actual = shifted_table().with_step_noise(parse_step_noise("0.3,1"))
+    out = {}
+    for jobs in (1, 2):
+        d = tmp_path_factory.mktemp(f"jobs{jobs}")
+        out[jobs] = (ex.run_experiment(d, experiment_cfg(), measured_table(), actual, jobs),
+                     [json.loads(line) for line in (d / "log.jsonl").read_text().splitlines()])
+    return actual, out
+
+
+def test_the_experiment_logs_the_expected_coverage_over_400_walks(noisy_experiment):
+    actual, out = noisy_experiment
+    summary, log = out[1]
+    assert len(log) == 2
+    for i, rec in enumerate(log):
+        e = rec["operational_expected"]
+        assert e["walks"] == ex.EXPECTED_WALKS == 400
+        assert e["interval"][0] <= e["mean"] <= e["interval"][1]
+        # from the run's seed and punctuation alone
+        z = draw_normals(ex._rng(0, 0, ex.STAGE_EXPECTED, i), 400, 200)
+        genes = np.array([[int(v) for v in g.split(":")] for g in rec["operational"].split(",")])
+        fit = NoisyWalks(actual.rows, actual.step_noise, z, 200).figures(genes[None])[2, 0]
+        assert e["mean"] == round(float(fit.mean()), 2)
+    assert any(r["operational_expected"]["interval"][0] < r["operational_expected"]["mean"]
+               for r in log)  # a noisy robot's walks spread
+    run = summary["runs"][0]
+    assert run["coverage"] == [r["operational_expected"]["mean"] for r in log]
+    assert run["walked"] == [r["operational_fitness"] for r in log]
+    assert summary["figures"] == summary["robot_time"]["figures"] == "expected over 400 walks"
+
+
+def test_the_expected_coverage_does_not_depend_on_the_jobs(noisy_experiment):
+    _, out = noisy_experiment
+    assert out[1][1] == out[2][1]
+    assert out[1][0]["runs"] == out[2][0]["runs"]
+
+
+def test_the_expected_coverage_repeats_from_the_seed_and_the_punctuation():
+    actual = shifted_table().with_step_noise(parse_step_noise("0.3,1"))
+    genes = parse_turn_cycle("29:2,28:9,22:5,18:6,11:8,10:1,6:4,5:6,3:4")  # a robust sweep
+    cfg = experiment_cfg()
+    a, b = (ex.expected_on_robot(actual, genes, 0, 3, cfg) for _ in range(2))
+    assert a == b and ex.expected_on_robot(actual, genes, 0, 4, cfg) != a
+    quiet = shifted_table()
+    exact = int(simulate(quiet.rows, genes).fitness[0])
+    assert ex.figures_of(quiet) == "one walk"
+    assert ex.expected_on_robot(quiet.with_step_noise(parse_step_noise("0,0")), genes, 0, 3,
+                                cfg) == {"mean": exact, "interval": [exact, exact], "walks": 400}
+
+
+def test_a_noise_free_experiment_logs_one_walk(tmp_path):
+    summary = ex.run_experiment(tmp_path, experiment_cfg(), measured_table(), shifted_table())
+    log = [json.loads(line) for line in (tmp_path / "log.jsonl").read_text().splitlines()]
+    assert all("operational_expected" not in r for r in log)
+    assert summary["runs"][0]["coverage"] == [r["operational_fitness"] for r in log]
+    assert "walked" not in summary["runs"][0] and summary["figures"] == "one walk"
