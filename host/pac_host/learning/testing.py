@@ -37,6 +37,8 @@ from pac_host.search import cga
 class TestResult:
     """What the robot did on one tested turn cycle: coverage figures, and the path if observed."""
 
+    __test__ = False  # a robot's result, not a test case for pytest to collect
+
     blocks_covered: int
     blocks_covered_once: int
     fitness: int
