@@ -13,6 +13,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from pac_host.files import make_dirs, write_atomic_with  # noqa: E402
+
 METHOD_TITLES = {
     "full": "PAL without partial recombination (full)",
     "partial": "PAL with partial recombination",
@@ -119,10 +121,15 @@ def _decorate(ax, summary: dict, title: str) -> None:
 
 
 def _save(fig, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    """Write the figure whole (through a temporary file renamed over, as result files are):
+    a full disk or a folder that may not be written is one line naming the plot, and leaves
+    no half PNG and every other file as it was."""
+    try:
+        make_dirs(path.parent)
+        fig.tight_layout()
+        write_atomic_with(path, lambda f: fig.savefig(f, format=path.suffix.lstrip(".") or "png"))
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -222,8 +229,18 @@ def learning_progress(records: list[dict], path: Path, title: str = "Learning pr
 
     gens, x_label = progress_axis(search, [r["generation"] for r in records])
     fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
-    ax.step(gens, [r["operational_fitness"] for r in records], where="post", lw=2,
-            label="operational coverage on the robot")
+    expected = operational_expectation(records)
+    if expected is None:
+        ax.step(gens, [r["operational_fitness"] for r in records], where="post", lw=2,
+                label="operational coverage on the robot (one walk: the robot is exact)")
+    else:  # a noisy robot: what the operational turn cycle delivers, with its interval
+        mean, lo, hi, walks = expected
+        ax.step(gens, mean, where="post", lw=2,
+                label=f"operational: expected coverage on the robot, 95% interval "
+                      f"({walks} walks behind the last)")
+        ax.fill_between(gens, lo, hi, step="post", alpha=0.25)
+        ax.plot(gens, [r["operational_fitness"] for r in records], ".", ms=4, color="tab:blue",
+                label="operational: its last walk")
     ax.plot(gens, [r["observed"][0]["fitness"] for r in records], "o", ms=4,
             label="tested best turn cycle on the robot")
     ax.plot(gens, [r["predicted"][0]["fitness"] for r in records], "x", ms=5,
@@ -241,6 +258,34 @@ def learning_progress(records: list[dict], path: Path, title: str = "Learning pr
     ax.set_title(title)
     ax.grid(alpha=0.3)
     return _save(fig, path)
+
+
+def operational_expectation(records: list[dict]
+                            ) -> tuple[list[float], list[float], list[float], int] | None:
+    """The operational turn cycle's expected coverage per punctuation as a noisy run logs it
+    (``operational_estimate``): means, 95% interval bounds (the mean where one walk gives no
+    interval) and the walks behind the last; None where every estimate is exact (a robot
+    without step noise: its one walk is the figure).
+
+    >>> operational_expectation([{"operational_estimate": {"mean": 20.0,
+    ...     "interval": [18.5, 21.5], "walks": 3}}])
+    ([20.0], [18.5], [21.5], 3)
+    >>> operational_expectation([{"operational_estimate": {"mean": 20.0,
+    ...     "interval": [20.0, 20.0], "walks": 1}}]) is None
+    True
+    """
+    est = [r.get("operational_estimate") for r in records]
+    if not est or any(e is None for e in est):
+        return None
+    spread = [e["interval"] for e in est if e.get("interval") is not None]
+    if not any(lo < hi for lo, hi in spread):
+        return None
+    mean = [float(e["mean"]) for e in est]
+    lo = [float(e["interval"][0]) if e.get("interval") else m for e, m in zip(est, mean,
+                                                                              strict=True)]
+    hi = [float(e["interval"][1]) if e.get("interval") else m for e, m in zip(est, mean,
+                                                                              strict=True)]
+    return mean, lo, hi, int(est[-1]["walks"])
 
 
 def optimize_progress(curves: list[list[tuple[float, int]]], path: Path,
@@ -266,4 +311,38 @@ def optimize_progress(curves: list[list[tuple[float, int]]], path: Path,
     ax.set_ylabel("best coverage fitness (3R + c)")
     ax.set_title(title)
     ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def camera_error_map(error_map: dict, path: Path, markers=(),
+                     title: str = "Expected position error of the camera") -> Path:
+    """The position error a camera calibration expects over the area (its
+    ``pose_error_map``: cm on a grid, None where the robot's marker is out of view), with
+    the floor markers (x, y, size) as squares."""
+    import numpy as np
+    from matplotlib.patches import Rectangle
+
+    xs, ys = np.asarray(error_map["x_cm"]), np.asarray(error_map["y_cm"])
+    z = np.array([[np.nan if v is None else v for v in row] for row in error_map["error_cm"]],
+                 dtype=np.float64)
+    fig, ax = plt.subplots(figsize=(4.6, 6.2), dpi=110)
+    ax.set_facecolor("0.85")  # out of view
+    dx = xs[1] - xs[0] if len(xs) > 1 else 1.0
+    dy = ys[1] - ys[0] if len(ys) > 1 else 1.0
+    top = max(float(np.nanmax(z)) if np.isfinite(z).any() else 1.0, 0.5)
+    mesh = ax.pcolormesh(np.append(xs - dx / 2, xs[-1] + dx / 2),
+                         np.append(ys - dy / 2, ys[-1] + dy / 2), np.ma.masked_invalid(z),
+                         cmap="viridis", vmin=0, vmax=top, shading="flat")
+    fig.colorbar(mesh, ax=ax, label="expected position error (cm, RMS)")
+    for x, y, size in markers:
+        ax.add_patch(Rectangle((x - size / 2, y - size / 2), size, size, fc="k", ec="w", lw=0.5))
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (cm)")
+    ax.set_ylabel("y (cm)")
+    sub = (f"median {error_map['median_cm']} cm, max {error_map['max_cm']} cm; marker "
+           f"{error_map['marker_height_cm']:g} cm up" if error_map.get("median_cm") is not None
+           else "the marker is out of view everywhere")
+    if error_map.get("unseen"):
+        sub += f"; grey: out of view ({error_map['unseen']} points)"
+    ax.set_title(_wrapped(f"{title}\n{sub}", 40), fontsize=9)
     return _save(fig, path)

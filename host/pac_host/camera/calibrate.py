@@ -8,30 +8,51 @@
   estimated from the homography (needs a camera that looks somewhat obliquely), or the height
   is given.
 - The lens (optional): intrinsics and distortion from ChArUco board images
-  (``cv2.aruco.CharucoDetector``, ``cv2.calibrateCamera``).
+  (``cv2.aruco.CharucoDetector``, ``cv2.calibrateCamera`` started from several plausible focal
+  lengths; the distortion model with k3 only where it clearly fits better).
 
-All of it is saved in one JSON file, ``{"format": "pac-camera-calibration/1", ...}``.
+Each fitted quantity is checked (:mod:`pac_host.camera.quality`): a calibration that fails a
+check is refused (InputError), its warnings are kept in the file's ``quality`` list with the
+position error to expect over the area (``pose_error_map``).
+
+All of it is saved in one JSON file, ``{"format": "pac-camera-calibration/1", ...}``; its
+``lens`` section stands alone (its own image size), so a later floor calibration can reuse it
+(:func:`load_lens`). :func:`load` is the one reader: anything but a sound calibration is one
+line (InputError).
 """
 
 from __future__ import annotations
 
 import json
+import math
+import re
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from pac_host.camera import quality as q
 from pac_host.camera.detect import Corners, detect, make_detector
 from pac_host.camera.geometry import undistort
-from pac_host.camera.layout import DEFAULT_BOARD, DEFAULT_LAYOUT, Board, Layout, floor_corners
+from pac_host.camera.layout import (
+    DEFAULT_BOARD,
+    DEFAULT_LAYOUT,
+    Board,
+    Layout,
+    dictionary,
+    floor_corners,
+)
 from pac_host.errors import InputError
 from pac_host.files import write_atomic
 
 FORMAT = "pac-camera-calibration/1"
 MIN_FLOOR_MARKERS = 4
 MIN_TILT_DEG = 6.0  # a view closer to square-on than this does not tell the focal length
+START_FOV_DEG = (50.0, 75.0, 100.0, 125.0)  # the lens fit's starting fields of view
+K3_GAIN = 0.9  # k3 is kept when it lowers the lens's RMS below this share of the simpler's
+SIMPLE_MODEL, RICH_MODEL = "k1,k2,p1,p2", "k1,k2,p1,p2,k3"
 
 
 @dataclass(frozen=True)
@@ -40,6 +61,29 @@ class Lens:
     dist: np.ndarray
     error_px: float  # RMS reprojection error of the board corners
     images: int
+    model: str = SIMPLE_MODEL  # the distortion coefficients fitted
+    size: tuple[int, int] | None = None  # the images' (width, height)
+    coverage: float | None = None  # the share of the image the board's corners spanned
+    model_rms: dict | None = None  # each model tried: its RMS (px)
+
+    def checks(self, size: tuple[int, int] | None = None,
+               cm_per_px: float | None = None) -> list[dict]:
+        size = size or self.size
+        model = self.model + "".join(f"; {k}: {v:.3f} px" for k, v in (self.model_rms or {})
+                                     .items() if k != self.model)
+        return q.lens_checks(self.K, self.dist, size, self.error_px, self.images, model,
+                             self.coverage, cm_per_px)
+
+    def to_json(self) -> dict:
+        doc = {"K": self.K.tolist(), "dist": np.ravel(self.dist).tolist(),
+               "error_px": self.error_px, "images": self.images, "model": self.model}
+        if self.size is not None:
+            doc["image_size"] = list(self.size)
+        if self.coverage is not None:
+            doc["coverage"] = round(self.coverage, 4)
+        if self.model_rms:
+            doc["model_rms_px"] = self.model_rms
+        return doc
 
 
 @dataclass(frozen=True)
@@ -50,6 +94,12 @@ class Calibration:
     center: np.ndarray  # the camera's lens, floor frame cm
     lens: Lens | None
     floor_error_cm: dict  # rms, max, markers (ids used), frames
+    checks: tuple[dict, ...] = ()  # the quality report (quality.check dicts)
+    error_map: dict | None = None  # quality.pose_error_map
+
+    @property
+    def warnings(self) -> list[dict]:
+        return q.warnings(self.checks)
 
     def ideal(self, pixels: np.ndarray) -> np.ndarray:
         if self.lens is None:
@@ -82,42 +132,226 @@ class Calibration:
     def to_json(self) -> dict:
         doc = {"format": FORMAT, "image_size": list(self.size), "layout": self.layout.to_json(),
                "floor_homography": self.H.tolist(), "camera_center_cm": self.center.tolist(),
-               "floor_error_cm": self.floor_error_cm, "lens": None}
-        if self.lens is not None:
-            doc["lens"] = {"K": self.lens.K.tolist(), "dist": self.lens.dist.tolist(),
-                           "error_px": self.lens.error_px, "images": self.lens.images}
+               "floor_error_cm": self.floor_error_cm,
+               "lens": None if self.lens is None else self.lens.to_json(),
+               "quality": list(self.checks)}
+        if self.error_map is not None:
+            doc["pose_error_map"] = self.error_map
         return doc
 
     def save(self, path: Path) -> None:
         write_atomic(Path(path), json.dumps(self.to_json(), indent=1) + "\n")
 
 
-def load(path: Path | str) -> Calibration:
-    """A calibration file; InputError naming the file for anything else."""
-    path = Path(path)
+# ---- the one reader ----------------------------------------------------------------------------
+
+
+class _Bad(Exception):
+    """What is wrong with a calibration file (becomes one InputError naming the file)."""
+
+
+def _non_finite(v, where: str = "") -> str | None:
+    """Where the document holds a NaN or an infinity, if it does."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return f"{where or 'the file'} is {v}"
+    items = v.items() if isinstance(v, dict) else enumerate(v) if isinstance(v, list) else ()
+    for k, x in items:
+        found = _non_finite(x, f"{where}[{k}]" if isinstance(k, int) else
+                            f"{where}.{k}" if where else str(k))
+        if found:
+            return found
+    return None
+
+
+def _get(doc: dict, key: str, where: str = ""):
+    if not isinstance(doc, dict):
+        raise _Bad(f"{where or 'the file'} is not an object")
+    if key not in doc:
+        raise _Bad(f"no {(where + '.' if where else '') + key}")
+    return doc[key]
+
+
+def _number(v, name: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+        raise _Bad(f"{name} is {v!r}, not a finite number")
+    return float(v)
+
+
+def _array(v, shape: tuple[int, ...] | None, name: str) -> np.ndarray:
+    """Numbers in nested lists of exactly ``shape`` (None: a flat list of any length)."""
+    a = np.asarray(v, dtype=object) if isinstance(v, list) else None
+    want = "a list of numbers" if shape is None else "x".join(map(str, shape)) + " numbers"
+    if a is None or (a.shape != shape if shape is not None else a.ndim != 1):
+        got = "a " + type(v).__name__ if a is None else "shape " + "x".join(map(str, a.shape))
+        raise _Bad(f"{name} must be {want}, got {got}")
+    return np.array([_number(x, name) for x in a.ravel()], dtype=np.float64).reshape(a.shape)
+
+
+def _size(v, name: str = "image_size") -> tuple[int, int]:
+    """[width, height] pixels, or the text "WIDTHxHEIGHT"."""
+    if isinstance(v, str):
+        m = re.fullmatch(r"\s*(\d+)\s*[xX*]\s*(\d+)\s*", v)
+        if m is None:
+            raise _Bad(f"{name} {v!r} is not [width, height] nor \"WIDTHxHEIGHT\"")
+        w, h = int(m[1]), int(m[2])
+    elif isinstance(v, list) and len(v) == 2:
+        w, h = (_number(x, name) for x in v)
+        if not (w.is_integer() and h.is_integer()):
+            raise _Bad(f"{name} {v!r} is not whole pixels")
+        w, h = int(w), int(h)
+    else:
+        raise _Bad(f"{name} must be [width, height] in pixels (or \"WIDTHxHEIGHT\"), got {v!r}")
+    if not (16 <= w <= 100_000 and 16 <= h <= 100_000):
+        raise _Bad(f"{name} {w}x{h} is not an image size")
+    return w, h
+
+
+def _lens(doc, size: tuple[int, int] | None) -> Lens:
+    """The ``lens`` section; ``size`` is the file's image size (a lens without its own)."""
+    K = _array(_get(doc, "K", "lens"), (3, 3), "lens.K")
+    if not (K[0, 0] > 0 and K[1, 1] > 0 and np.allclose(K[2], [0, 0, 1])
+            and K[1, 0] == 0 and abs(K[0, 1]) <= 0.01 * K[0, 0]):
+        raise _Bad("lens.K is not a camera matrix ([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "
+                   "fx, fy > 0)")
+    dist = _array(_get(doc, "dist", "lens"), None, "lens.dist")
+    if len(dist) not in (4, 5, 8, 12, 14):
+        raise _Bad(f"lens.dist has {len(dist)} coefficients (OpenCV's: 4, 5, 8, 12 or 14)")
+    err = _number(_get(doc, "error_px", "lens"), "lens.error_px")
+    images = _number(_get(doc, "images", "lens"), "lens.images")
+    if err < 0 or images < 1 or not images.is_integer():
+        raise _Bad(f"lens.error_px {err:g} or lens.images {images:g} out of range")
+    own = _size(doc["image_size"], "lens.image_size") if "image_size" in doc else None
+    if own is None and size is None:
+        raise _Bad("no lens.image_size")
+    if own is not None and size is not None and own != size:
+        raise _Bad(f"the lens was calibrated on {own[0]}x{own[1]} images, the floor on "
+                   f"{size[0]}x{size[1]}")
+    model = doc.get("model", SIMPLE_MODEL if len(dist) == 4 or dist[4] == 0 else RICH_MODEL)
+    coverage = doc.get("coverage")
+    coverage = None if coverage is None else _number(coverage, "lens.coverage")
+    tried = doc.get("model_rms_px")
+    if tried is not None and not (isinstance(tried, dict) and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in tried.values())):
+        raise _Bad("lens.model_rms_px must map models to numbers")
+    lens = Lens(K, dist, err, int(images), str(model), own or size, coverage, tried)
+    q.refuse(lens.checks(), "lens refused")
+    return lens
+
+
+def _read(path: Path) -> dict:
     try:
-        doc = json.loads(path.read_text())
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError(f"calibration file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+    except UnicodeDecodeError as e:
+        raise InputError(f"{path}: not a camera calibration (not UTF-8 text: byte "
+                         f"0x{e.object[e.start]:02x} at offset {e.start})") from None
+    except OSError as e:
+        raise InputError(f"{path}: cannot read the camera calibration "
+                         f"({e.strerror or e})") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
         raise InputError(f"{path}: not a camera calibration (not JSON: {e})") from None
+    except RecursionError:
+        raise InputError(f"{path}: not a camera calibration (nested too deeply)") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         kind = doc.get("format") if isinstance(doc, dict) else None
         raise InputError(f"{path}: not a camera calibration ({FORMAT}); "
-                         f"it is {kind or 'another kind of file'}")
+                         f"it is {kind if isinstance(kind, str) else 'another kind of file'}")
+    bad = _non_finite(doc)
+    if bad:
+        raise InputError(f"{path}: a damaged camera calibration: {bad}; calibrate again")
+    return doc
+
+
+def _checked(path: Path, fun):
     try:
-        lens = doc["lens"]
-        return Calibration(
-            (int(doc["image_size"][0]), int(doc["image_size"][1])),
-            Layout.from_json(doc["layout"]),
-            np.array(doc["floor_homography"], dtype=np.float64).reshape(3, 3),
-            np.array(doc["camera_center_cm"], dtype=np.float64).reshape(3),
-            None if lens is None else Lens(np.array(lens["K"], dtype=np.float64).reshape(3, 3),
-                                           np.array(lens["dist"], dtype=np.float64).ravel(),
-                                           float(lens["error_px"]), int(lens["images"])),
-            dict(doc["floor_error_cm"]))
-    except (KeyError, TypeError, ValueError, IndexError) as e:
-        raise InputError(f"{path}: a damaged camera calibration ({e!r})") from None
+        return fun()
+    except _Bad as e:
+        raise InputError(f"{path}: a damaged camera calibration: {e}; calibrate again") from None
+    except InputError as e:
+        raise InputError(f"{path}: {e}") from None
+
+
+def load_lens(path: Path | str) -> Lens:
+    """The lens section of a calibration file (to calibrate the floor again with it)."""
+    path = Path(path)
+    doc = _read(path)
+
+    def lens():
+        sec = _get(doc, "lens")
+        if sec is None:
+            raise InputError("the calibration holds no lens (it was made without --lens)")
+        return _lens(sec, _size(_get(doc, "image_size")))
+
+    return _checked(path, lens)
+
+
+def load(path: Path | str) -> Calibration:
+    """A calibration file, checked as :func:`calibrate_floor` checks a new one; InputError
+    (one line naming the file) for anything else."""
+    path = Path(path)
+    doc = _read(path)
+    return _checked(path, lambda: _calibration(doc))
+
+
+def _calibration(doc: dict) -> Calibration:
+    size = _size(_get(doc, "image_size"))
+    lay = _get(doc, "layout")
+    if not isinstance(lay, dict):
+        raise _Bad("layout is not an object")
+    layout = Layout.from_json(lay)
+    dictionary(layout.dictionary)
+    r = layout.robot
+    if not (all(m.size > 0 for m in layout.floor) and r.size > 0 and r.plate >= r.size
+            and r.height >= 0) or len({m.id for m in layout.floor}) != len(layout.floor):
+        raise _Bad("layout: marker sizes must be > 0, ids distinct, the robot's height >= 0")
+    H = _array(_get(doc, "floor_homography"), (3, 3), "floor_homography")
+    center = _array(_get(doc, "camera_center_cm"), (3,), "camera_center_cm")
+    sec = _get(doc, "lens")
+    lens = None if sec is None else _lens(sec, size)
+    err = _get(doc, "floor_error_cm")
+    rms = _number(_get(err, "rms", "floor_error_cm"), "floor_error_cm.rms")
+    mx = _number(_get(err, "max", "floor_error_cm"), "floor_error_cm.max")
+    markers = _get(err, "markers", "floor_error_cm")
+    frames = _get(err, "frames", "floor_error_cm")
+    if not (isinstance(markers, list) and all(isinstance(i, int) for i in markers)
+            and isinstance(frames, int) and frames >= 1 and 0 <= rms <= mx + 1e-9):
+        raise _Bad("floor_error_cm: rms <= max, markers a list of ids, frames >= 1")
+    _check_homography(H, size, lens)
+    x, y, z = center
+    checks = [q.floor_check(rms, mx, None, lens is not None)]
+    checks += q.height_check(z, None, lens is not None)
+    q.refuse(checks)
+    if max(abs(x), abs(y)) > 10_000:
+        raise _Bad(f"camera_center_cm ({x:g}, {y:g}) is more than 100 m from the area")
+    if not z > r.height + 1:
+        raise _Bad(f"the robot's marker ({r.height:g} cm up) is not below the camera")
+    stored = doc.get("quality", [])
+    if not (isinstance(stored, list) and all(isinstance(c, dict) and isinstance(
+            c.get("status"), str) and isinstance(c.get("text"), str) for c in stored)):
+        raise _Bad("quality must be a list of checks (status, text)")
+    emap = doc.get("pose_error_map")
+    return Calibration(size, layout, H, center, lens, dict(err), tuple(stored),
+                       emap if isinstance(emap, dict) else None)
+
+
+def _check_homography(H: np.ndarray, size: tuple[int, int], lens: Lens | None) -> None:
+    """A homography that maps the whole image onto the floor, in front of the camera."""
+    w, h = size
+    # in units of the image (0..1) to units of the area (~3 m): a sound one is well conditioned
+    M = np.diag([1 / 300, 1 / 300, 1.0]) @ H @ np.diag([w, h, 1.0])
+    s = np.linalg.svd(M, compute_uv=False)
+    if not s[0] > 0 or s[-1] / s[0] < 1e-9:
+        raise _Bad("floor_homography is singular (all zero?)")
+    corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1], [w / 2, h / 2]],
+                       dtype=np.float64)
+    ideal = corners if lens is None else undistort(corners, lens.K, lens.dist)
+    den = np.column_stack([ideal, np.ones(len(ideal))]) @ H[2]
+    if not (np.all(den > 0) or np.all(den < 0)) or np.abs(den).min() < 1e-12 * np.abs(den).max():
+        raise _Bad("floor_homography puts the horizon inside the image (not a floor seen "
+                   "from above)")
 
 
 # ---- the lens --------------------------------------------------------------------------------
@@ -126,11 +360,14 @@ def load(path: Path | str) -> Calibration:
 def calibrate_lens(frames: Iterable[np.ndarray], board: Board = DEFAULT_BOARD,
                    min_images: int = 5) -> Lens:
     """Intrinsics and distortion from frames of the ChArUco board (at least ``min_images``
-    showing at least 6 of its corners)."""
+    showing at least 6 of its corners); refused (InputError) if the fit fails a check."""
     cb = board.charuco()
     det = cv2.aruco.CharucoDetector(cb)
     obj, img, size = [], [], None
     for f in frames:
+        if size is not None and (f.shape[1], f.shape[0]) != size:
+            raise InputError(f"the lens board images differ in size ({size[0]}x{size[1]}, "
+                             f"{f.shape[1]}x{f.shape[0]})")
         size = (f.shape[1], f.shape[0])
         cc, ci, _, _ = det.detectBoard(f)
         if ci is None or len(ci) < 6:
@@ -141,9 +378,59 @@ def calibrate_lens(frames: Iterable[np.ndarray], board: Board = DEFAULT_BOARD,
     if len(obj) < min_images:
         raise InputError(f"the lens board was found in {len(obj)} image(s); need at least "
                          f"{min_images} (print the board sheet flat, fill the view with it)")
-    err, K, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None,
-                                            flags=cv2.CALIB_FIX_K3)
-    return Lens(K, dist.ravel()[:5], float(err), len(obj))
+    lens = fit_lens(obj, img, size)
+    q.refuse(lens.checks(), "lens calibration refused")
+    return lens
+
+
+def _plausible(K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> bool:
+    return (q.FOV_DEG[0] <= q.fov_deg(K[0, 0], size[0]) <= q.FOV_DEG[1]
+            and abs(K[0, 0] / K[1, 1] - 1) <= q.ASPECT[1]
+            and not q.radial_folds(K, dist, size))
+
+
+def fit_lens(obj: Sequence[np.ndarray], img: Sequence[np.ndarray], size: tuple[int, int]
+             ) -> Lens:
+    """``cv2.calibrateCamera`` on the board's corners, started from several plausible focal
+    lengths (the one ``cv2.initCameraMatrix2D`` reads off the views, and fields of view
+    across the plausible range; principal point at the centre) so that a strong lens does
+    not end in a false minimum; the best plausible fit with k1, k2 (k3 fixed at 0), then
+    k3 freed from it and kept only if it lowers the RMS clearly."""
+    w, h = size
+    try:
+        guess = float(cv2.initCameraMatrix2D(obj, img, size)[0, 0])
+    except cv2.error:
+        guess = float("nan")
+    focals = [guess] if q.FOV_DEG[0] <= q.fov_deg(guess, w) <= q.FOV_DEG[1] else []
+    focals += [f for f in (q.focal_for_fov(a, w) for a in START_FOV_DEG)
+               if all(abs(f / g - 1) > 0.1 for g in focals)]
+
+    def fit(K0: np.ndarray, d0: np.ndarray, flags: int):
+        try:
+            err, K, d, _, _ = cv2.calibrateCamera(obj, img, size, K0.copy(), d0.copy(),
+                                                  flags=flags | cv2.CALIB_USE_INTRINSIC_GUESS)
+        except cv2.error:  # degenerate views: no fit from this start
+            return float("inf"), K0, d0, False
+        d = d.ravel()[:5]
+        return float(err), K, d, _plausible(K, d, size)
+
+    best = None
+    for f in focals:
+        K0 = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])
+        got = fit(K0, np.zeros(5), cv2.CALIB_FIX_K3)
+        if best is None or (got[3], -got[0]) > (best[3], -best[0]):
+            best = got
+    err, K, d, ok = best
+    rich = fit(K, d, 0)
+    rms = {SIMPLE_MODEL: round(err, 4), RICH_MODEL: round(rich[0], 4)}
+    if rich[3] and rich[0] < K3_GAIN * err:
+        err, K, d, _ = rich
+        model = RICH_MODEL
+    else:
+        model = SIMPLE_MODEL
+    pts = np.concatenate([i.reshape(-1, 2) for i in img]).astype(np.float32)
+    coverage = cv2.contourArea(cv2.convexHull(pts)) / (w * h)
+    return Lens(K, d, err, len(obj), model, (w, h), float(coverage), rms)
 
 
 # ---- the floor -------------------------------------------------------------------------------
@@ -185,7 +472,9 @@ def focal_from_homography(H_floor_to_img: np.ndarray, principal: Sequence[float]
 def calibrate_floor(frames: Iterable[np.ndarray], layout: Layout = DEFAULT_LAYOUT,
                     lens: Lens | None = None, camera_height: float | None = None
                     ) -> Calibration:
-    """The floor homography and the camera's position from frames showing the floor markers."""
+    """The floor homography and the camera's position from frames showing the floor markers,
+    checked (refused with InputError on a failed check) and with the position error to expect
+    over the area."""
     frames = list(frames)
     if not frames:
         raise InputError("no frames to calibrate from")
@@ -206,38 +495,89 @@ def calibrate_floor(frames: Iterable[np.ndarray], layout: Layout = DEFAULT_LAYOU
         raise InputError("the floor markers' corners give no homography (markers in a line?)")
     res = cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), H).reshape(-1, 2) - floor
     d = np.hypot(res[:, 0], res[:, 1])
+    back = cv2.perspectiveTransform(floor.reshape(-1, 1, 2), np.linalg.inv(H)).reshape(-1, 2)
+    rms_px = float(np.sqrt(((back - ideal) ** 2).sum(1).mean()))
     err = {"rms": round(float(np.sqrt((d ** 2).mean())), 4), "max": round(float(d.max()), 4),
            "markers": ids, "frames": n}
-    center = camera_center(H, px, floor, size, lens, camera_height)
-    return Calibration(size, layout, H, center, lens, err)
+    cm_per_px = float(np.median([known[i].size / np.linalg.norm(
+        obs[i] - np.roll(obs[i], 1, axis=0), axis=1).mean() for i in ids]))
+    checks = []
+    if lens is not None:
+        checks += lens.checks(size, cm_per_px) + q.lens_size_check(lens.size, size)
+    else:
+        checks.append(q.no_lens_check())
+    checks.append(q.floor_check(err["rms"], err["max"], rms_px, lens is not None))
+    pose = camera_pose(H, px, floor, size, lens, camera_height)
+    if pose["focal"] is not None:
+        checks.append(q.focal_check(pose["focal"], size[0]))
+    checks += q.height_check(None if pose["fitted"] is None else float(pose["fitted"][2]),
+                             camera_height, lens is not None, layout.robot.height)
+    if lens is not None:
+        checks.append(q.pose_check(pose["fitted"], pose["floor"], layout.robot.height))
+    q.refuse(checks)
+    cal = Calibration(size, layout, H, pose["center"], lens, err)
+    # what the corners' noise explains of the floor's fit (the board's corners fit as well
+    # as this camera finds corners); the rest is a model error that stays between the markers
+    noise_cm = lens.error_px * cm_per_px if lens is not None else 0.0
+    misfit = math.sqrt(max(err["rms"] ** 2 - noise_cm ** 2, 0.0))
+    emap = q.pose_error_map(cal, q.homography_covariance(H, ideal, floor),
+                            _center_sigma(pose, camera_height), max(rms_px, 0.05), misfit)
+    checks.append(q.map_check(emap))
+    q.refuse(checks)
+    return replace(cal, checks=tuple(checks), error_map=emap)
 
 
-def camera_center(H: np.ndarray, px: np.ndarray, floor: np.ndarray, size: tuple[int, int],
-                  lens: Lens | None, camera_height: float | None) -> np.ndarray:
-    """Where the lens is (floor frame, cm): solvePnP with the lens (or the focal length the
-    homography implies); a given height replaces the fitted one."""
+def _center_sigma(pose: dict, given: float | None) -> np.ndarray:
+    """The camera centre's uncertainty per axis (cm): with a lens, its centre and the floor
+    markers' apart (at least 0.5 % of the height); else GIVEN_HEIGHT_SIGMA of the height; a
+    given height at least as far as the fitted one."""
+    c = pose["center"]
+    if pose["floor"] is not None:
+        s = np.maximum(np.abs(pose["fitted"] - pose["floor"]), 0.005 * c[2])
+    else:
+        s = np.full(3, (0.01 if pose["lens"] else q.GIVEN_HEIGHT_SIGMA) * c[2])
+    if given is not None and pose["fitted"] is not None:
+        s[2] = max(s[2], abs(given - pose["fitted"][2]))
+    return s
+
+
+def camera_pose(H: np.ndarray, px: np.ndarray, floor: np.ndarray, size: tuple[int, int],
+                lens: Lens | None, camera_height: float | None) -> dict:
+    """Where the lens is (floor frame, cm): ``center``, from solvePnP with the lens (or the
+    focal length the homography implies: ``focal``) and a given height in place of the fitted
+    one; ``fitted``, solvePnP's centre (None when the view is too square-on to fit it without
+    a lens); ``floor``, with a lens, the centre the floor markers alone imply (the focal
+    length of the floor's perspective; None when too square-on)."""
     principal = ((size[0] - 1) / 2, (size[1] - 1) / 2)
+    focal = floor_centre = None
     if lens is not None:
         K, dist = lens.K, lens.dist
+        f = focal_from_homography(np.linalg.inv(H), K[:2, 2])
+        if f is not None:
+            floor_centre = q.pose_from_homography(H, np.array([[f, 0, K[0, 2]],
+                                                               [0, f, K[1, 2]], [0, 0, 1]]))
     else:
-        f = focal_from_homography(np.linalg.inv(H), principal)
-        if f is None:
+        focal = focal_from_homography(np.linalg.inv(H), principal)
+        if focal is None:
             if camera_height is None:
                 raise InputError("the camera looks too squarely down to tell its height from "
                                  "the floor markers alone: give --camera-height CM or "
                                  "calibrate the lens (--lens)")
             nadir = cv2.perspectiveTransform(np.array([[principal]]), H).reshape(2)
-            return np.array([nadir[0], nadir[1], camera_height])
-        K = np.array([[f, 0, principal[0]], [0, f, principal[1]], [0, 0, 1]])
+            return {"center": np.array([nadir[0], nadir[1], camera_height]), "fitted": None,
+                    "floor": None, "focal": None, "lens": False}
+        K = np.array([[focal, 0, principal[0]], [0, focal, principal[1]], [0, 0, 1]])
         dist = None
     obj = np.column_stack([floor, np.zeros(len(floor))])
     ok, rvec, tvec = cv2.solvePnP(obj, px, K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
     if not ok:
         raise InputError("cannot place the camera from the floor markers")
     R = cv2.Rodrigues(rvec)[0]
-    c = (-R.T @ tvec).ravel()
-    if c[2] <= 0:
-        c = -c  # the mirror solution
+    fitted = (-R.T @ tvec).ravel()
+    if fitted[2] <= 0:
+        fitted = -fitted  # the mirror solution
+    c = fitted.copy()
     if camera_height is not None:
         c[2] = camera_height
-    return c
+    return {"center": c, "fitted": fitted, "floor": floor_centre, "focal": focal,
+            "lens": lens is not None}

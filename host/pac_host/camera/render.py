@@ -221,17 +221,20 @@ class Renderer:
         return self._finish(img, rng)
 
 
-def board_poses(camera: Camera, board: Board, n: int, rng: np.random.Generator
+def board_poses(camera: Camera, board: Board, n: int, rng: np.random.Generator,
+                distance: tuple[float, float] = (35.0, 65.0), spread: float = 0.6
                 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``n`` poses (rvec, tvec) of the lens board held 35..65 cm before the camera, tilted up
-    to 35 degrees and spread over the field of view (as a person would wave it)."""
+    """``n`` poses (rvec, tvec) of the lens board held ``distance`` cm (35..65) before the
+    camera, tilted up to 35 degrees, its centre over the middle ``spread`` of the view's width
+    and height (as a person would wave it)."""
     w, h = camera.size
     K = camera.K
     bw, bh = board.squares[0] * board.square, board.squares[1] * board.square
+    lo, hi = (1 - spread) / 2, (1 + spread) / 2
     out = []
     for _ in range(n):
-        z = rng.uniform(35, 65)
-        u, v = rng.uniform(0.2 * w, 0.8 * w), rng.uniform(0.2 * h, 0.8 * h)
+        z = rng.uniform(*distance)
+        u, v = rng.uniform(lo * w, hi * w), rng.uniform(lo * h, hi * h)
         centre = np.array([(u - K[0, 2]) / K[0, 0] * z, (v - K[1, 2]) / K[1, 1] * z, z])
         rvec = rng.uniform(-1, 1, 3) * np.radians([35, 35, 20])
         R = cv2.Rodrigues(rvec)[0]

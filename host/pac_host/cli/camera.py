@@ -172,41 +172,60 @@ def grab_cmd(source, out_dir, count, every) -> None:
 @click.option("--floor", "floor_src", required=True, metavar="SOURCE",
               help="Frames of the floor markers: a folder, a video or a camera index.")
 @click.option("--lens", "lens_src", default=None, metavar="SOURCE",
-              help="Frames of the lens board (ChArUco): fits intrinsics and distortion.")
+              help="Frames of the lens board (ChArUco): fits intrinsics and distortion; or an "
+                   "earlier calibration file (.json) whose lens to reuse.")
 @click.option("--frames", default=None, type=int,
               help="Frames to take from a camera or video (default: a folder's all, else 10).")
 @click.option("--camera-height", default=None, type=float, metavar="CM",
               help="The lens's height above the floor (needed without --lens when the camera "
-                   "looks straight down).")
+                   "looks straight down; checked against the fitted one otherwise).")
 @layout_option
 @click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="The calibration file to write (pac-camera-calibration/1).")
-def calibrate_cmd(floor_src, lens_src, frames, camera_height, layout_path, out_path) -> None:
+@click.option("--map", "map_path", default=None, type=click.Path(dir_okay=False, path_type=Path),
+              help="The PNG of the expected position error over the area (default: beside "
+                   "--out, NAME_error_map.png).")
+def calibrate_cmd(floor_src, lens_src, frames, camera_height, layout_path, out_path,
+                  map_path) -> None:
     """Fit the floor (a homography from >= 4 floor markers at known places) and the camera's
-    position, and optionally the lens; write them to one file and print the errors."""
-    from pac_host.camera.calibrate import calibrate_floor, calibrate_lens
+    position, and optionally the lens; check each against physics and its residuals (a
+    calibration that fails a check is refused, exit 2); write them to one file with the
+    expected position error over the area, and print the quality report."""
+    from pac_host.camera.calibrate import calibrate_floor, calibrate_lens, load_lens
+    from pac_host.plots import camera_error_map
 
     if frames is not None and frames < 1:
         raise InputError(f"--frames must be >= 1, got {frames}")
-    if camera_height is not None and camera_height <= 0:
+    if camera_height is not None and not camera_height > 0:
         raise InputError(f"--camera-height must be > 0, got {camera_height}")
     layout = _layout(layout_path)
     n = frames if frames is not None or Path(floor_src).is_dir() else 10
     lens = None
-    if lens_src is not None:
+    if lens_src is not None and Path(lens_src).suffix.lower() == ".json":
+        lens = load_lens(lens_src)
+        click.echo(f"lens: from {lens_src} ({lens.images} board images, {lens.error_px:.3f} px "
+                   f"RMS, focal {lens.K[0, 0]:.1f} px)")
+    elif lens_src is not None:
         m = frames if frames is not None or Path(lens_src).is_dir() else 10
         lens = calibrate_lens(_frames(lens_src, m))
         click.echo(f"lens: {lens.images} board images, reprojection error {lens.error_px:.3f} "
-                   f"px RMS, focal {lens.K[0, 0]:.1f} px, distortion "
+                   f"px RMS, focal {lens.K[0, 0]:.1f} px, distortion ({lens.model}) "
                    + ", ".join(f"{v:.4f}" for v in lens.dist))
     cal = calibrate_floor(_frames(floor_src, n), layout, lens, camera_height)
+    map_path = map_path or out_path.with_name(out_path.stem + "_error_map.png")
     cal.save(out_path)
+    camera_error_map(cal.error_map, map_path, [(m.x, m.y, m.size) for m in layout.floor])
     e = cal.floor_error_cm
     c = cal.center
     click.echo(f"floor: {len(e['markers'])} markers (ids {e['markers']}) over {e['frames']} "
                f"frame(s), reprojection error {e['rms']:.3f} cm RMS, {e['max']:.3f} cm max")
-    click.echo(f"camera at ({c[0]:.1f}, {c[1]:.1f}) cm, {c[2]:.1f} cm above the floor; "
-               f"wrote {out_path}")
+    click.echo(f"camera at ({c[0]:.1f}, {c[1]:.1f}) cm, {c[2]:.1f} cm above the floor")
+    click.echo("quality:")
+    for chk in cal.checks:
+        line = f"  {'ok' if chk['status'] == 'ok' else 'warning'}: {chk['text']}"
+        click.echo(line + (f" ({chk['advice']})" if chk.get("advice") else ""))
+    click.echo(f"wrote {out_path} and {map_path}"
+               + (f" ({len(cal.warnings)} warning(s))" if cal.warnings else ""))
 
 
 def _camera_opts(frames: int, window: float, height: float | None):
@@ -236,6 +255,8 @@ def check_cmd(source, calib_path, frames, height, out_path) -> None:
 
     calib = cal.load(calib_path)
     finder = PoseFinder(calib, _camera_opts(frames, 2.0, height))
+    for w in calib.warnings:
+        click.echo(f"calibration warning: {w['text']}")
     imgs = _frames(source, frames)
     corners = detect(finder.detector, imgs[-1])
     pose, used, why = finder.in_window(imgs, finder.opts.heading0)

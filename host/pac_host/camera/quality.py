@@ -1,0 +1,378 @@
+"""How far a camera calibration can be trusted: each fitted quantity checked against physics
+and against its own residuals, and the position error to expect over the floor area.
+
+A check is a dict ``{"check": name, "status": "ok" | "warn" | "fail", "text": one line with
+its numbers}`` (and ``"advice"``, what to do, when it is not ok). A calibration with a failed
+check is refused (:func:`refuse`: InputError, exit 2); the warnings are data the CLI prints.
+The same checks run when a calibration file is read, so a file the calibration would refuse
+is refused too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from pac_host.camera.layout import AREA_X, AREA_Y
+from pac_host.errors import InputError
+
+# (warn above, fail above)
+LENS_RMS_PX = (0.5, 1.0)  # the board corners' reprojection error
+FLOOR_RMS_CM = (0.5, 1.0)  # the floor markers' corners through the homography
+HEIGHT_GIVEN = (0.03, 0.10)  # the fitted height against --camera-height, relative
+ASPECT = (0.02, 0.10)  # fx / fy against 1 (square pixels)
+PRINCIPAL = (0.10, 0.25)  # the principal point's offset from the centre, share of the size
+POSE_AGREE_CM = (0.3, 1.0)  # the parallax error of the lens's and the floor's camera centres
+# plausible ranges
+FOV_DEG = (30.0, 150.0)  # horizontal field of view
+HEIGHT_CM = (30.0, 1000.0)  # the lens above the floor
+BOARD_COVERAGE = 0.25  # warn when the board's corners span less of the image than this
+GIVEN_HEIGHT_SIGMA = 0.03  # a given height's assumed accuracy when nothing checks it
+MAP_STEP_CM = 20.0
+
+LENS_ADVICE = "calibrate the lens with --lens (10-20 board images that cover the view)"
+BOARD_ADVICE = ("take the board images again: flat board, sharp images, at 35-65 cm, "
+                "tilted, covering the whole view")
+
+
+def check(name: str, status: str, text: str, advice: str = "") -> dict:
+    out = {"check": name, "status": status, "text": text}
+    if advice and status != "ok":
+        out["advice"] = advice
+    return out
+
+
+def grade(value: float, limits: tuple[float, float]) -> str:
+    """ok, warn or fail for a value against (warn above, fail above); NaN fails."""
+    if not value <= limits[1]:
+        return "fail"
+    return "warn" if value > limits[0] else "ok"
+
+
+def failures(checks: Sequence[dict]) -> list[dict]:
+    return [c for c in checks if c["status"] == "fail"]
+
+
+def warnings(checks: Sequence[dict]) -> list[dict]:
+    return [c for c in checks if c["status"] == "warn"]
+
+
+def refuse(checks: Sequence[dict], what: str = "camera calibration refused") -> None:
+    """InputError (one line: what failed, its numbers, what to do) if any check failed."""
+    bad = failures(checks)
+    if not bad:
+        return
+    advice = list(dict.fromkeys(c["advice"] for c in bad if c.get("advice")))
+    raise InputError(f"{what}: " + "; ".join(c["text"] for c in bad)
+                     + (" -- " + "; ".join(advice) if advice else ""))
+
+
+def fov_deg(focal: float, width: float) -> float:
+    """The horizontal field of view (degrees) of a focal length (pixels)."""
+    return float(np.degrees(2 * np.arctan2(width / 2, focal))) if focal > 0 else float("nan")
+
+
+def focal_for_fov(fov: float, width: float) -> float:
+    return float(width / 2 / np.tan(np.radians(fov) / 2))
+
+
+# ---- the lens --------------------------------------------------------------------------------
+
+
+def radial_folds(K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> bool:
+    """Whether the distortion model folds over within the image: its distorted radius stops
+    growing before it reaches the image's corners (a false minimum of the fit: some pixels
+    would have two rays, or none)."""
+    d = np.zeros(8)
+    d[:min(8, len(dist))] = np.asarray(dist, dtype=np.float64).ravel()[:8]
+    k1, k2, _, _, k3, k4, k5, k6 = d
+    w, h = size
+    corner = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], dtype=np.float64)
+    xy = (corner - K[:2, 2]) / [K[0, 0], K[1, 1]]
+    r_corner = float(np.hypot(*xy.T).max())
+    r = np.linspace(0, 4 * r_corner, 4001)[1:]
+    r2 = r * r
+    rd = r * (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
+    reach = np.nonzero(rd >= r_corner)[0]
+    if len(reach) == 0:
+        return True
+    return bool(np.any(np.diff(rd[:reach[0] + 1]) <= 0))
+
+
+def corner_shift_px(K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> float:
+    """How far the distortion moves the image's corners (pixels)."""
+    w, h = size
+    corner = np.array([[[0.0, 0.0]], [[w - 1.0, 0]], [[0, h - 1.0]], [[w - 1.0, h - 1.0]]])
+    ideal = cv2.undistortPointsIter(corner, K, dist, None, K,
+                                    (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-9))
+    return float(np.hypot(*(ideal - corner).reshape(-1, 2).T).max())
+
+
+def lens_checks(K: np.ndarray, dist: np.ndarray, size: tuple[int, int], rms_px: float,
+                images: int, model: str = "", coverage: float | None = None,
+                cm_per_px: float | None = None) -> list[dict]:
+    """The lens's fit against its residual and against physics (``size``: the image's)."""
+    w, h = size
+    fx, fy = float(K[0, 0]), float(K[1, 1])
+    on_floor = f", about {rms_px * cm_per_px:.2f} cm on the floor" if cm_per_px else ""
+    out = [check("lens_rms", grade(rms_px, LENS_RMS_PX),
+                 f"lens: the board's corners fit to {rms_px:.3f} px RMS over {images} images"
+                 f"{on_floor} ({LENS_RMS_PX[0]:g} px or less expected"
+                 + (f"; model {model})" if model else ")"), BOARD_ADVICE)]
+    fov = fov_deg(fx, w)
+    ok = FOV_DEG[0] <= fov <= FOV_DEG[1]
+    out.append(check("lens_focal", "ok" if ok else "fail",
+                     f"lens: focal length {fx:.1f} px, a {fov:.0f} deg horizontal field of view "
+                     f"at {w} px wide" + ("" if ok else f" (plausible: {FOV_DEG[0]:.0f}-"
+                                                       f"{FOV_DEG[1]:.0f} deg)"),
+                     BOARD_ADVICE))
+    aspect = abs(fx / fy - 1) if fy > 0 else float("inf")
+    out.append(check("lens_aspect", grade(aspect, ASPECT),
+                     f"lens: fx / fy = {fx / fy if fy > 0 else float('inf'):.3f} (square "
+                     "pixels: 1)", BOARD_ADVICE))
+    off = max(abs(K[0, 2] - (w - 1) / 2) / w, abs(K[1, 2] - (h - 1) / 2) / h)
+    out.append(check("lens_centre", grade(off, PRINCIPAL),
+                     f"lens: principal point ({K[0, 2]:.0f}, {K[1, 2]:.0f}) px, "
+                     f"{100 * off:.0f} % of the image from its centre", BOARD_ADVICE))
+    folds = radial_folds(K, dist, size)
+    shift = float("nan") if folds else corner_shift_px(K, dist, size)
+    out.append(check("lens_distortion", "fail" if folds else "ok",
+                     "lens: the distortion fitted folds over inside the image (a false fit: "
+                     "distortion " + ", ".join(f"{v:.3g}" for v in np.ravel(dist)) + ")"
+                     if folds else f"lens: the distortion moves the image's corners by "
+                     f"{shift:.1f} px", BOARD_ADVICE))
+    if coverage is not None:
+        out.append(check("lens_coverage", "ok" if coverage >= BOARD_COVERAGE else "warn",
+                         f"lens: the board's corners span {100 * coverage:.0f} % of the image"
+                         + ("" if coverage >= BOARD_COVERAGE else
+                            "; the distortion near the edges (where the floor markers are) "
+                            "is extrapolated"),
+                         "hold the board near the image's edges and corners too"))
+    return out
+
+
+def lens_size_check(lens_size: tuple[int, int] | None, size: tuple[int, int]) -> list[dict]:
+    if lens_size is None or tuple(lens_size) == tuple(size):
+        return []
+    return [check("lens_size", "fail",
+                  f"the lens was calibrated on {lens_size[0]}x{lens_size[1]} images, the floor "
+                  f"frames are {size[0]}x{size[1]}",
+                  "calibrate the lens at the floor frames' resolution")]
+
+
+# ---- the floor and the camera's position -----------------------------------------------------
+
+
+def floor_check(rms_cm: float, max_cm: float, rms_px: float | None, has_lens: bool) -> dict:
+    status = grade(rms_cm, FLOOR_RMS_CM)
+    text = (f"floor: the markers' corners fit to {rms_cm:.2f} cm RMS ({max_cm:.2f} cm max"
+            + (f", {rms_px:.2f} px RMS)" if rms_px is not None else ")"))
+    if status == "warn":
+        text += (f"; poses between the markers are off by as much ({FLOOR_RMS_CM[0]:g} cm or "
+                 "less expected)")
+    elif status == "fail":
+        text += f"; poses would be off by as much (more than {FLOOR_RMS_CM[1]:g} cm is refused)"
+    advice = (LENS_ADVICE if not has_lens else
+              "check that the floor markers lie flat where the layout puts them and that the "
+              "lens file is this camera's")
+    return check("floor_error", status, text, advice)
+
+
+def height_check(fitted: float | None, given: float | None, has_lens: bool,
+                 marker_height: float = 12.0) -> list[dict]:
+    """The camera's height fitted from the floor markers against physics and a given one."""
+    out = []
+    advice = LENS_ADVICE if not has_lens else "check the floor markers and the lens file"
+    if fitted is not None:
+        ok = HEIGHT_CM[0] <= fitted <= HEIGHT_CM[1]
+        what = ("the floor's perspective" if not has_lens else "the lens and the floor markers")
+        text = f"camera: {fitted / 100:.2f} m above the floor from {what}"
+        if not ok:
+            text += f" (plausible: {HEIGHT_CM[0] / 100:g}-{HEIGHT_CM[1] / 100:g} m)"
+            if not has_lens:
+                text += "; lens distortion read as tilt?"
+        out.append(check("camera_height", "ok" if ok else "fail", text, advice))
+    if given is not None:
+        if not HEIGHT_CM[0] <= given <= HEIGHT_CM[1]:
+            out.append(check("height_given", "fail",
+                             f"--camera-height {given:g} cm is implausible (plausible: "
+                             f"{HEIGHT_CM[0]:g}-{HEIGHT_CM[1]:g} cm)",
+                             "give the lens's height above the floor in cm"))
+        elif fitted is None:
+            cm = parallax_error(np.array([90.0, 150.0, given]),
+                                np.array([0, 0, GIVEN_HEIGHT_SIGMA * given]), marker_height)
+            out.append(check("height_given", "warn",
+                             f"camera: {given / 100:.2f} m above the floor as given; the view is "
+                             f"too square-on to check it ({100 * GIVEN_HEIGHT_SIGMA:g} % off "
+                             f"would move poses by up to {cm:.2f} cm)", LENS_ADVICE))
+        else:
+            rel = abs(fitted - given) / given
+            cm = parallax_error(np.array([90.0, 150.0, given]),
+                                np.array([0, 0, fitted - given]), marker_height)
+            out.append(check("height_given", grade(rel, HEIGHT_GIVEN),
+                             f"camera: {given / 100:.2f} m above the floor as given, "
+                             f"{fitted / 100:.2f} m fitted ({100 * rel:.0f} % apart: up to "
+                             f"{cm:.2f} cm of parallax error)",
+                             "measure the height again (floor to the lens)"
+                             + ("" if has_lens else f", or {LENS_ADVICE}")))
+    return out
+
+
+def focal_check(focal: float, width: int) -> dict:
+    fov = fov_deg(focal, width)
+    ok = FOV_DEG[0] <= fov <= FOV_DEG[1]
+    return check("floor_focal", "ok" if ok else "fail",
+                 f"focal length {focal:.0f} px from the floor's perspective: a {fov:.0f} deg "
+                 "field of view" + ("" if ok else f" (plausible: {FOV_DEG[0]:.0f}-"
+                                                  f"{FOV_DEG[1]:.0f} deg)"), LENS_ADVICE)
+
+
+def parallax_error(c: np.ndarray, dc: np.ndarray, height: float) -> float:
+    """The worst position error over the area's corners (cm) for a marker ``height`` cm up
+    when the camera's centre ``c`` is off by ``dc``: the parallax correction moves a point f
+    by (f - c) height / cz."""
+    f = np.array([[x, y] for x in AREA_X for y in AREA_Y])
+    e = height / c[2] * (dc[:2] + (f - c[:2]) * dc[2] / c[2])
+    return float(np.hypot(*e.T).max())
+
+
+def pose_check(c_lens: np.ndarray, c_floor: np.ndarray | None, marker_height: float) -> dict:
+    """The camera's centre from the lens model (solvePnP with its intrinsics) against the one
+    the floor markers alone imply (the focal length of the floor's perspective)."""
+    if c_floor is None:
+        return check("camera_pose", "ok", "camera: the view is too square-on for the floor "
+                     "markers alone to place it; the lens's placement is not cross-checked")
+    d = np.asarray(c_lens, dtype=np.float64) - c_floor
+    cm = parallax_error(c_lens, d, marker_height)
+    return check("camera_pose", grade(cm, POSE_AGREE_CM),
+                 f"camera: placed {np.linalg.norm(d):.1f} cm apart by the lens model and by "
+                 f"the floor markers alone; up to {cm:.2f} cm of parallax error on the area "
+                 f"for a marker {marker_height:g} cm up", "the lens does not fit this camera "
+                 "(another camera, zoom, focus or resolution?): calibrate it again")
+
+
+def no_lens_check() -> dict:
+    return check("lens", "warn", "no lens calibration: distortion is not corrected and the "
+                 "focal length comes from the floor's perspective", LENS_ADVICE)
+
+
+def pose_from_homography(H: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """The camera's centre (floor frame, cm) from the homography ``H`` (ideal pixels -> floor
+    cm) and intrinsics ``K``: the columns of K^-1 H^-1 as the rotation's first two columns and
+    the translation (made a rotation by SVD)."""
+    M = np.linalg.inv(K) @ np.linalg.inv(H)
+    s = 2.0 / (np.linalg.norm(M[:, 0]) + np.linalg.norm(M[:, 1]))
+    if M[2, 2] * s < 0:  # the floor in front of the camera
+        s = -s
+    r1, r2, t = s * M[:, 0], s * M[:, 1], s * M[:, 2]
+    u, _, vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r1, r2)]))
+    R = u @ vt
+    c = -R.T @ t
+    return c if c[2] > 0 else -c
+
+
+# ---- the expected pose error over the area ---------------------------------------------------
+
+
+def _h_params(H: np.ndarray) -> np.ndarray:
+    return (H / H[2, 2]).ravel()[:8]
+
+
+def _h_of(p: np.ndarray) -> np.ndarray:
+    return np.append(p, 1.0).reshape(3, 3)
+
+
+def _jacobian(fun, p: np.ndarray) -> np.ndarray:
+    """d fun / d p by central differences (fun: params -> vector)."""
+    cols = []
+    for i in range(len(p)):
+        e = 1e-6 * max(abs(p[i]), 1e-9)
+        a, b = p.copy(), p.copy()
+        a[i] += e
+        b[i] -= e
+        cols.append((fun(a) - fun(b)) / (2 * e))
+    return np.column_stack(cols)
+
+
+def homography_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """The covariance (8, 8) of the homography's parameters from its fit's residuals."""
+    p = _h_params(H)
+
+    def res(q):
+        return (cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), _h_of(q)).reshape(-1, 2)
+                - floor).ravel()
+
+    J = _jacobian(res, p)
+    r = res(p)
+    dof = max(len(r) - 8, 1)
+    return float(r @ r) / dof * np.linalg.pinv(J.T @ J)
+
+
+def pose_error_map(cal, cov: np.ndarray, center_sigma: np.ndarray, noise_px: float,
+                   misfit_cm: float = 0.0, step: float = MAP_STEP_CM) -> dict:
+    """The position error (cm, RMS) to expect for the robot's marker centred at each point of
+    a grid over the area, at its height: the homography's uncertainty (``cov``, from its fit),
+    the noise of the marker's corners (``noise_px`` per corner, through the local cm per
+    pixel), the parallax error of the camera centre's uncertainty (``center_sigma``, cm, per
+    axis), and ``misfit_cm`` everywhere (what no model corrects). None where the marker is
+    out of view."""
+    marker = cal.layout.robot
+    hm, c = marker.height, cal.center
+    xs = np.arange(AREA_X[0], AREA_X[1] + 1e-9, step)
+    ys = np.arange(AREA_Y[0], AREA_Y[1] + 1e-9, step)
+    gx, gy = np.meshgrid(xs, ys)
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    n = len(pts)
+    # the marker's corners in the image: all in view?
+    half = marker.size / 2
+    offs = np.array([[-half, -half], [half, -half], [half, half], [-half, half]])
+    corners = cal.from_floor((pts[:, None, :] + offs).reshape(-1, 2), hm).reshape(n, 4, 2)
+    w, h = cal.size
+    seen = np.all((corners >= 1) & (corners <= [w - 2, h - 2]), axis=(1, 2))
+    # the local cm per pixel at the marker's centre (its pixel moved by one pixel)
+    px = cal.from_floor(pts, hm)
+    jx = cal.to_plane(px + [0.5, 0], hm) - cal.to_plane(px - [0.5, 0], hm)
+    jy = cal.to_plane(px + [0, 0.5], hm) - cal.to_plane(px - [0, 0.5], hm)
+    scale = np.sqrt((jx ** 2).sum(1) + (jy ** 2).sum(1))  # Frobenius norm of d cm / d px
+    detect = noise_px * scale / 2  # four corners averaged, both axes
+    # the homography's uncertainty at the marker's floor point (below it along the ray)
+    shrink = (c[2] - hm) / c[2]
+    f = c[:2] + (pts - c[:2]) / shrink
+    ideal = cv2.perspectiveTransform(f.reshape(-1, 1, 2), np.linalg.inv(cal.H))
+    p0 = _h_params(cal.H)
+    J = _jacobian(lambda q: cv2.perspectiveTransform(ideal, _h_of(q)).ravel(), p0)
+    var = np.einsum("ij,jk,ik->i", J, cov, J).reshape(n, 2).sum(1)
+    fit = np.sqrt(np.maximum(var, 0)) * shrink
+    # parallax: to_plane = f - (f - c) hm / cz, moved by the centre's error
+    s = np.asarray(center_sigma, dtype=np.float64)
+    par = hm / c[2] * np.sqrt(s[0] ** 2 + s[1] ** 2
+                              + (np.hypot(*(f - c[:2]).T) * s[2] / c[2]) ** 2)
+    total = np.sqrt(fit ** 2 + detect ** 2 + par ** 2 + misfit_cm ** 2)
+    total = np.where(seen, total, np.nan).reshape(gy.shape)
+    vals = total[np.isfinite(total)]
+    worst = np.unravel_index(np.nanargmax(total), total.shape) if len(vals) else None
+    return {"x_cm": xs.round(3).tolist(), "y_cm": ys.round(3).tolist(),
+            "error_cm": [[None if not np.isfinite(v) else round(float(v), 3) for v in row]
+                         for row in total],
+            "marker_height_cm": hm, "noise_px": round(float(noise_px), 4),
+            "median_cm": round(float(np.median(vals)), 3) if len(vals) else None,
+            "max_cm": round(float(vals.max()), 3) if len(vals) else None,
+            "worst_at_cm": None if worst is None else [float(xs[worst[1]]), float(ys[worst[0]])],
+            "unseen": int(n - seen.sum()), "points": n}
+
+
+def map_check(m: dict) -> dict:
+    if m["median_cm"] is None:
+        return check("pose_error_map", "fail", "the robot's marker is out of view everywhere "
+                     "on the area", "aim the camera at the area")
+    status = "warn" if m["median_cm"] > FLOOR_RMS_CM[0] else "ok"
+    text = (f"expected position error over the area: {m['median_cm']:.2f} cm median, "
+            f"{m['max_cm']:.2f} cm max (at {m['worst_at_cm'][0]:g}, {m['worst_at_cm'][1]:g})")
+    if m["unseen"]:
+        status = "warn" if status == "ok" else status
+        text += (f"; the robot's marker is out of view at {m['unseen']} of {m['points']} points "
+                 f"of a {MAP_STEP_CM:g} cm grid")
+    return check("pose_error_map", status, text, "see the error map; move the camera so that it "
+                 "sees the whole area" if m["unseen"] else LENS_ADVICE)
