@@ -209,3 +209,54 @@ def test_a_noise_free_experiment_logs_one_walk(tmp_path):
     assert all("operational_expected" not in r for r in log)
     assert summary["runs"][0]["coverage"] == [r["operational_fitness"] for r in log]
     assert "walked" not in summary["runs"][0] and summary["figures"] == "one walk"
+
+
+# --- what a noisy experiment measures against ------------------------------------------------
+
+def test_a_noisy_robot_is_measured_against_its_robust_record_not_the_noise_free_one():
+    from pac_host.model import best_known
+
+    cfg = experiment_cfg()
+    noisy = shifted_table().with_step_noise(parse_step_noise("0.3,1"))
+    best = ex.best_known_on(noisy, cfg, 12.5)
+    record = best_known.robust("shifted", noisy.step_noise)
+    assert best["used"] == "built-in" and best["fitness"] == record["mean"] < 49
+    assert best["built_in"]["step_noise"] == "0.3,1" and best["built_in"]["walks"] == 400
+    # a noise level without a record: the experiment's own optimum, never the 49 of no walk
+    other = shifted_table().with_step_noise(parse_step_noise("0.2,1"))
+    assert ex.best_known_on(other, cfg, 12.5)["fitness"] == 12.5
+    assert ex.best_known_on(other, cfg, 12.5)["built_in"] is None
+    assert ex.best_known_on(shifted_table(), cfg, 12)["fitness"] == 49  # noise-free: as before
+
+
+def test_the_optimum_on_a_noisy_robot_is_searched_and_measured_with_its_noise():
+    cfg = experiment_cfg()
+    noisy = shifted_table().with_step_noise(parse_step_noise("0.3,1"))
+    run = ex.optimum_run(noisy, 0, cfg)
+    genes = parse_turn_cycle(run["turn_cycle"])
+    assert run["fitness"] == run["expected"]["mean"] == ex.expected_on_robot(
+        noisy, genes, 0, 0, cfg, ex.STAGE_OPTIMUM_EXPECTED)["mean"]
+    assert run["noise_free_fitness"] == int(simulate(noisy.rows, genes).fitness[0])
+    assert run["expected"]["walks"] == 400
+    assert "expected" not in ex.optimum_run(shifted_table(), 0, cfg)
+
+
+def test_the_oracle_knows_its_robots_step_noise_from_the_first_search():
+    """The oracle control is the ceiling of the same method with a perfect model: on a noisy
+    robot its search walks the true table with the true noise from the start, and its
+    operational turn cycle is chosen on the evidence, not on one lucky walk."""
+    noisy = shifted_table().with_step_noise(NOISE)
+    cfg = small(known_step_noise=NOISE.to_json(), correction="ga", model_population=1,
+                model_generations=0, tests="paper", search_models=1)
+    cfg.check()
+    s0 = pal.initial_state(noisy, np.random.default_rng(1), cfg,
+                           random_population(np.random.default_rng(0), cfg.cga_population))
+    assert s0.step_noise == NOISE
+    robot = pal.SimulatedRobot(noisy, rng=np.random.default_rng(5))
+    s1, r1 = pal.punctuate(s0, robot, np.random.default_rng(2), cfg)
+    assert r1["step_noise"] == {"known": NOISE.to_json(), "clear": True}
+    assert r1["search"]["walks"] == SEARCH_WALKS and s1.step_noise == NOISE
+    assert r1["operational_estimate"]["interval"] is not None  # an expectation, not one walk
+    # without the setting, the same oracle searches one noise-free walk
+    plain = pal.initial_state(noisy, np.random.default_rng(1), replace(cfg, known_step_noise=None))
+    assert plain.step_noise is None

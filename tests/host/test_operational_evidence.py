@@ -124,6 +124,9 @@ def test_a_single_lucky_walk_replaces_the_operational_turn_cycle_only_on_evidenc
         return np.full(n, 10.0), np.full(n, walk_sd), np.zeros(n)
 
     monkeypatch.setattr(operational, "model_walks", model_walks)
+    # before the model has a track record (it counts as one walk at most); a record of three
+    # 45s against its predictions of 10 would rightly hand the decision to the walks
+    monkeypatch.setattr(operational, "MIN_TRACK", 10**6)
     new, rec = pal.punctuate(state, LuckyRobot(op, 1), np.random.default_rng(1), cfg)
     assert rec["step_noise"]["clear"]
     assert rec["operational_replaced"] is replaced
@@ -179,3 +182,36 @@ def test_the_model_walked_with_noise_predicts_a_spread_and_without_none():
                                             np.random.default_rng(0), walks=4)
     assert (sd0 == 0).all()
     assert exact.tolist() == pal.simulate(models[0], cands, 200).fitness.tolist()
+
+
+def _track(gap: float, rng: np.random.Generator) -> tuple[dict, dict, dict]:
+    """Eight walked turn cycles (three walks each, spread 8) whose means miss the model's
+    predictions by about ``gap``."""
+    walks, predicted, sd = {}, {}, {}
+    for i in range(8):
+        p = 15.0 + i
+        miss = gap * (1 if i % 2 else -1)
+        walks[f"t{i}"] = tuple(p + miss + rng.normal(0, 8, 3))
+        predicted[f"t{i}"], sd[f"t{i}"] = p, 8.0
+    return walks, predicted, sd
+
+
+def test_a_model_whose_predictions_hold_decides_and_one_that_misses_does_not():
+    """The model's weight is learnt from its track record: predictions that have held let a
+    challenger the model expects to cover 6 more replace the operational turn cycle on one
+    poor walk; the same walks against a model that has missed by 10 either way leave the
+    decision to the walks (the challenger's one walk is worse: kept)."""
+    rng = np.random.default_rng(3)
+    good = operational.model_error_var(*_track(0.0, rng))
+    bad = operational.model_error_var(*_track(10.0, rng))
+    assert good is not None and bad is not None and good < 10.0 < 60.0 < bad
+    assert operational.model_error_var({"a": (1,)}, {"a": 1.0}, {"a": 8.0}) is None
+
+    def decided(error_var):
+        est = {"op": operational.estimate([19, 21, 20, 20], 20.0, 8.0, 0.0, error_var),
+               "new": operational.estimate([17], 26.0, 8.0, 0.0, error_var)}
+        return operational.decide("op", est, ["new"])
+
+    assert decided(good)[0] == "new"
+    assert decided(bad) == (None, None)
+    assert decided(None)[0] is None  # no track record yet: one walk's worth, not enough

@@ -285,7 +285,9 @@ def test_the_best_known_turn_cycles_score_as_recorded():
     bench/test_tools.py checks): each record holds, simulated on its robot's table at the
     record's budget."""
     from pac_host.coverage.placement import parse_placement, placed_fitness, summary
+    from pac_host.coverage.walks import walk_many
     from pac_host.model import best_known, robots
+    from pac_host.model.step_noise import parse_step_noise
 
     records = best_known.entries()
     assert set(records) >= {"measured", "shifted", *robots.ROBOTS}  # every built-in robot's
@@ -304,6 +306,14 @@ def test_the_best_known_turn_cycles_score_as_recorded():
                                  parse_placement(pl["placement"]), pl["walks"],
                                  np.random.default_rng(pl["seed"]), budget, table.effects)
             assert summary(fit)["mean"] == pl["mean"], name
+        for rb in rec.get("robust", []):  # the best known with step noise: simulate --walks
+            noise = parse_step_noise(rb["step_noise"])
+            assert best_known.robust(name, noise) is rb
+            figs, _ = walk_many(table.rows, parse_turn_cycle(rb["turn_cycle"]), rb["walks"],
+                                budget, table.effects, noise,
+                                np.random.default_rng(rb["seed"]))
+            assert round(float(figs.fitness.mean()), 2) == rb["mean"], (name, rb["step_noise"])
+    assert {rb["step_noise"] for rb in records["shifted"]["robust"]} >= {"0.3,1", "0.15,0.5"}
 
 
 def test_a_closing_kick_keeps_a_repeating_loops_net_move():

@@ -16,6 +16,7 @@ from pac_host import limits
 from pac_host.coverage import DEFAULT_BUDGET, placement
 from pac_host.errors import InputError
 from pac_host.learning import model_fit, model_ga, test_selection
+from pac_host.model.step_noise import StepNoise, step_noise_from_json
 from pac_host.search import cga, shapes
 from pac_host.search.kicks import check_length_cost
 from pac_host.search.shorten import check_shorten_after
@@ -121,6 +122,10 @@ class PALConfig:
     # expectations (True), or by one noise-free walk (False, runs saved before it and the
     # paper). Without a clear estimate the search is the noise-free one, figure for figure
     search_noise: bool = False
+    # The robot's step noise when it is known rather than estimated (its JSON form,
+    # pac_host.model.step_noise; None: estimated from the observed steps): the oracle control
+    # of an experiment on a noisy robot knows its robot as it knows its table
+    known_step_noise: dict | None = None
     cga: cga.CGAConfig = field(default_factory=cga.CGAConfig)
     model: model_ga.ModelGAConfig = field(default_factory=model_ga.ModelGAConfig)
 
@@ -174,9 +179,17 @@ class PALConfig:
         if self.search_noise and self.search == "cga":
             raise InputError("search_noise needs an anytime profile (the paper's CGA scores "
                              "one noise-free walk)")
+        if self.known_step_noise is not None:
+            step_noise_from_json(self.known_step_noise, "known step noise")
         if self.placement_error() is not None and self.search == "cga":
             raise InputError("--placement-error needs an anytime profile (the paper's CGA "
                              "scores from the exact start)")
+
+    def known_noise(self) -> StepNoise | None:
+        """The robot's step noise as given (:attr:`known_step_noise`), or None."""
+        if self.known_step_noise is None:
+            return None
+        return step_noise_from_json(self.known_step_noise, "known step noise")
 
     def placement_error(self) -> placement.PlacementError | None:
         return placement.parse_placement(self.placement)

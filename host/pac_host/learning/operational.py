@@ -6,8 +6,12 @@ replacing the operational turn cycle whenever one walk beats the last keeps the 
 zero (:func:`pac_host.diagnose.noise.estimate_step_noise`), each candidate's expected fitness
 is the mean of its walks shrunk toward the model's prediction (:func:`estimate`): the model,
 walked :data:`MODEL_WALKS` times with the estimated noise, gives the prediction and the
-spread of one walk, and counts as one walk at most (less where its population disagrees). A
-challenger replaces the operational turn cycle only when its estimate is higher by more than
+spread of one walk. How much the prediction counts is learnt from the model's track record
+(:func:`model_error_var`): the walked turn cycles' means against the model's predictions,
+beyond what their walks' own spread explains. A model whose predictions have held counts as
+many walks, one that has missed counts as few; before :data:`MIN_TRACK` turn cycles have been
+walked it counts as one walk at most (less where its population disagrees). A challenger
+replaces the operational turn cycle only when its estimate is higher by more than
 :data:`DECISION_Z` standard errors of the difference; higher but not by that much, the one
 known less well is walked again at the next punctuation (:func:`decide`). Without step noise
 a walk is exact and the rule is the paper's: the higher walk wins.
@@ -32,8 +36,16 @@ from pac_host.diagnose.noise import Z95
 from pac_host.model.effects import Effect
 from pac_host.model.step_noise import StepNoise
 
-MODEL_WALKS = 32  # noisy walks of the model per candidate: its prediction and a walk's spread
-DECISION_Z = 1.645  # a challenger must beat the operational one by this many standard errors
+MODEL_WALKS = 128  # noisy walks of the model per candidate: its prediction and a walk's spread
+MIN_TRACK = 3  # walked turn cycles before the model's track record sets its weight
+# a challenger must beat the operational one by this many standard errors of the difference:
+# with a model that counts as one walk at most (no track record yet), a one-sided 95% margin
+# keeps a single lucky walk out; once the model's weight is learnt from its track record the
+# estimates are shrunk for luck as far as the record shows, and one standard error guards
+# against flip-flops without holding on to a worse sweep (at 1.645 a sweep 2 blocks better
+# was not confirmed in 14 punctuations at 0.3 cm / 1 deg: docs/results.md)
+DECISION_Z = 1.645
+TRACKED_Z = 1.0
 
 
 @dataclass(frozen=True)
@@ -59,19 +71,27 @@ def key(turn_cycle: np.ndarray) -> str:
     return format_turn_cycle(turn_cycle)
 
 
-def estimate(walks: Sequence[float], predicted: float, walk_sd: float, model_sd: float
-             ) -> Estimate:
+def estimate(walks: Sequence[float], predicted: float, walk_sd: float, model_sd: float,
+             error_var: float | None = None) -> Estimate:
     """The expected fitness of a turn cycle from its ``walks`` on the robot and the model's
     ``predicted`` expectation: the walks' mean shrunk toward the prediction (a Gaussian
-    posterior; ``walk_sd`` the spread of one walk, the prediction's own variance ``walk_sd^2 +
-    model_sd^2``, so the model counts as one walk at most). ``walk_sd`` 0: the walks are exact
-    (their mean, no spread); no walks: the prediction."""
+    posterior; ``walk_sd`` the spread of one walk). The prediction's own variance is
+    ``error_var`` (the model's error learnt from its track record, :func:`model_error_var`)
+    plus ``model_sd^2`` (its population's disagreement) and the Monte Carlo error of its
+    :data:`MODEL_WALKS` walks; without a track record (``error_var`` None) ``walk_sd^2 +
+    model_sd^2``, so the model counts as one walk at most. ``walk_sd`` 0: the walks are exact
+    (their mean, no spread); no walks: the prediction.
+
+    >>> round(estimate([30], 20.0, 10.0, 0.0, error_var=1.0).mean, 1)  # a model that has held
+    20.2
+    """
     n = len(walks)
     if walk_sd <= 0.0:
         if n:
             return Estimate(float(np.mean(walks)), 0.0, n)
         return Estimate(float(predicted), float(model_sd), 0)
-    prior_var = walk_sd**2 + model_sd**2
+    prior_var = (walk_sd**2 + model_sd**2 if error_var is None
+                 else error_var + model_sd**2 + walk_sd**2 / MODEL_WALKS)
     precision = 1.0 / prior_var + n / walk_sd**2
     mean = (predicted / prior_var + float(np.sum(walks)) / walk_sd**2) / precision
     return Estimate(float(mean), math.sqrt(1.0 / precision), n)
@@ -91,6 +111,28 @@ def model_walks(models: np.ndarray, effects: Sequence[Effect], candidates: np.nd
     fit = fit.astype(np.float64).reshape(len(candidates), walks)
     spread = simulate(models, candidates, budget, effects).fitness.astype(np.float64)
     return fit.mean(axis=1), fit.std(axis=1, ddof=1), spread.std(axis=0)
+
+
+def model_error_var(walks: dict[str, Sequence[float]], predicted: dict[str, float],
+                    walk_sd: dict[str, float]) -> float | None:
+    """The variance of the model's prediction error from its track record: over every walked
+    turn cycle it predicts, the squared gap between its walks' mean and the prediction less
+    what the walks' spread alone gives (``walk_sd^2 / n`` and the prediction's Monte Carlo
+    error), averaged (an unbiased estimate of the error's variance), at least 0; None with
+    fewer than :data:`MIN_TRACK` such turn cycles.
+
+    >>> model_error_var({"a": [20, 22], "b": [30], "c": [10]},
+    ...                 {"a": 21.0, "b": 30.0, "c": 10.0}, {"a": 2.0, "b": 2.0, "c": 2.0})
+    0.0
+    >>> model_error_var({"a": [20]}, {"a": 10.0}, {"a": 2.0}) is None
+    True
+    """
+    terms = [(float(np.mean(w)) - predicted[k]) ** 2
+             - walk_sd[k] ** 2 * (1.0 / len(w) + 1.0 / MODEL_WALKS)
+             for k, w in walks.items() if len(w) and k in predicted]
+    if len(terms) < MIN_TRACK:
+        return None
+    return max(0.0, float(np.mean(terms)))
 
 
 def pooled_sd(model_sd: float, walks: Sequence[float], model_walks_n: int = MODEL_WALKS
@@ -114,11 +156,12 @@ def with_repeat(tests: np.ndarray, repeat: np.ndarray | None) -> np.ndarray:
 
 
 def decide(operational: str | None, estimates: dict[str, Estimate],
-           challengers: Sequence[str]) -> tuple[str | None, str | None]:
+           challengers: Sequence[str], z: float = DECISION_Z) -> tuple[str | None, str | None]:
     """(the candidate that becomes operational or None to keep it, the candidate to walk
     again or None): the ``challengers`` (tested keys) with the highest expectation against the
     ``operational`` one (None: none yet, the best challenger is taken). It replaces only when
-    higher by more than :data:`DECISION_Z` standard errors of the difference; higher by less,
+    higher by more than ``z`` standard errors of the difference (:data:`DECISION_Z`, or
+    :data:`TRACKED_Z` once the model's weight comes from its track record); higher by less,
     the one of the two with the larger standard error is walked again.
 
     >>> est = {"a": Estimate(15.0, 1.0, 6), "b": Estimate(20.0, 6.0, 1)}
@@ -133,7 +176,7 @@ def decide(operational: str | None, estimates: dict[str, Estimate],
         return best, None
     o, c = estimates[operational], estimates[best]
     gap = c.mean - o.mean
-    if gap > DECISION_Z * math.hypot(o.sd, c.sd):
+    if gap > z * math.hypot(o.sd, c.sd):
         return best, None
     if gap > 0:
         return None, best if c.sd > o.sd else operational

@@ -32,7 +32,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from pac_host.coverage import START_POSE, fitness_of_score, format_turn_cycle, simulate
+from pac_host.coverage import (
+    START_POSE,
+    fitness_of_score,
+    format_turn_cycle,
+    parse_turn_cycle,
+    simulate,
+)
 from pac_host.diagnose.noise import StepNoiseFit
 from pac_host.errors import InputError
 from pac_host.learning import model_fit, model_ga
@@ -61,6 +67,7 @@ from pac_host.learning.testing import (
     perturbations,
     results_from_coverage,
 )
+from pac_host.model.step_noise import StepNoise
 from pac_host.model.table import GaitTable
 from pac_host.search import cga
 
@@ -191,7 +198,7 @@ def punctuate(
         "robot_seconds": round(float(seconds_of_tests(tests, cfg.budget).sum()), 3),
         **fit_record,
     }
-    if cfg.correction == "fit":
+    if cfg.correction == "fit" or cfg.known_step_noise is not None:
         record["step_noise"] = None if noise_fit is None else noise_fit.to_json()
     if estimates:
         record["test_estimates"] = [estimates[operational_rule.key(t)].to_json() for t in tests]
@@ -253,13 +260,35 @@ def _observed_tests(tests: np.ndarray, results: list[TestResult], budget: int
 
 
 def _step_noise(state: PALState, tests: np.ndarray, results: list[TestResult],
-                cfg: PALConfig) -> StepNoiseFit | None:
+                cfg: PALConfig) -> StepNoiseFit | KnownStepNoise | None:
     """With the "fit" correction, the robot's step noise estimated from every observed run
-    (None: another correction, paths not observed, or no repeated steps yet)."""
+    (None: another correction, paths not observed, or no repeated steps yet); the noise itself
+    where it is known (``cfg.known_step_noise``: the oracle control)."""
+    known = cfg.known_noise()
+    if known is not None:
+        return KnownStepNoise(known)
     if cfg.correction != "fit" or any(r.poses is None for r in results):
         return None
     observed = tuple(state.observed) + _observed_tests(tests, results, cfg.budget)
     return model_fit.step_noise(observed)
+
+
+# walked turn cycles besides the candidates whose predictions give the model's track record
+TRACK_LIMIT = 64
+
+
+class KnownStepNoise:
+    """A step noise known, not estimated: what :class:`~pac_host.diagnose.noise.StepNoiseFit`
+    says of an estimate (its noise; clear when not zero) for the noise as given."""
+
+    def __init__(self, noise: StepNoise) -> None:
+        self.noise = noise
+
+    def clear(self) -> bool:
+        return not self.noise.is_zero()
+
+    def to_json(self) -> dict:
+        return {"known": self.noise.to_json(), "clear": self.clear()}
 
 
 def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
@@ -276,15 +305,25 @@ def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
         if operational_rule.key(tc) not in names:
             names.append(operational_rule.key(tc))
             cands.append(tc)
+    decided = len(names)
+    # and the model's track record: every other turn cycle walked (the latest TRACK_LIMIT)
+    for k in [k for k in walks if k not in names][-TRACK_LIMIT:]:
+        names.append(k)
+        cands.append(parse_turn_cycle(k))
     mean, walk_sd, model_sd = operational_rule.model_walks(
         state.models, state.model_effects, np.stack(cands), cfg.budget, noise,
         np.random.default_rng(rng.integers(2**63)))
+    sds = {k: operational_rule.pooled_sd(float(s), walks.get(k, ()))
+           for k, s in zip(names, walk_sd, strict=True)}
+    error_var = operational_rule.model_error_var(
+        walks, {k: float(m) for k, m in zip(names, mean, strict=True)}, sds)
     estimates = {}
-    for k, m, s, d in zip(names, mean, walk_sd, model_sd, strict=True):
-        w = walks.get(k, ())
-        estimates[k] = operational_rule.estimate(w, float(m), operational_rule.pooled_sd(
-            float(s), w), float(d))
-    chosen, again = operational_rule.decide(op_key, estimates, keys)
+    for k, m, d in list(zip(names, mean, model_sd, strict=True))[:decided]:
+        estimates[k] = operational_rule.estimate(walks.get(k, ()), float(m), sds[k], float(d),
+                                                 error_var)
+    chosen, again = operational_rule.decide(
+        op_key, estimates, keys,
+        operational_rule.DECISION_Z if error_var is None else operational_rule.TRACKED_Z)
     repeat = None
     if again is not None:
         repeat = state.operational if again == op_key else tests[keys.index(again)].copy()
@@ -299,7 +338,7 @@ def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
 
 
 def _logged_estimate(operational: np.ndarray, walks: Sequence[int],
-                     estimates: dict, noise_fit: StepNoiseFit | None) -> dict:
+                     estimates: dict, noise_fit: StepNoiseFit | KnownStepNoise | None) -> dict:
     """The operational turn cycle's expected fitness as logged: the evidence rule's estimate;
     else, on a robot without clear step noise, its walks' mean (each walk exact); with clear
     step noise but the last-walk rule, the walks' mean and standard error (interval None after

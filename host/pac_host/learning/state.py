@@ -63,5 +63,6 @@ def initial_state(
         cga_pop = np.concatenate([cga_pop[:-1], best[None]])
     fit = cga.fitness(model.rows, cga_pop, cfg.budget, model.effects)
     cga_pop = cga_pop[np.argsort(-fit, kind="stable")]
+    known = cfg.known_noise() if cfg.search_noise else None  # searched with from the first
     return PALState(0, cga_pop, models, tuple(model.effects), cga_pop[0].copy(), None, None,
-                    model)
+                    model, step_noise=None if known is None or known.is_zero() else known)

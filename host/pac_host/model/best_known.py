@@ -10,6 +10,16 @@ robots measures against its record, never only against its own (shorter) optimum
 >>> name, rec = for_table(shifted_table(), budget())
 >>> name, rec["fitness"] >= 49, for_table(shifted_table(), 100)
 ('shifted', True, None)
+
+A robot with step noise is measured against the record's robust entry at that noise (the
+best known mean fitness over noisy walks), not the noise-free fitness no walk repeats:
+
+>>> from pac_host.model.step_noise import parse_step_noise
+>>> noisy = shifted_table().with_step_noise(parse_step_noise("0.3,1"))
+>>> name, rec = robust_for_table(noisy, budget())
+>>> name, rec["step_noise"], rec["mean"] >= 24
+('shifted', '0.3,1', True)
+>>> robust_for_table(shifted_table().with_step_noise(parse_step_noise("0.2,1")), budget())
 """
 
 from __future__ import annotations
@@ -20,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pac_host.model.step_noise import StepNoise
 from pac_host.model.table import BUILTIN, GaitTable
 
 PATH = Path(__file__).resolve().with_name("best_known.json")
@@ -67,6 +78,26 @@ def robot_of(table: GaitTable) -> str | None:
                 and [e.to_json() for e in built.effects] == effects):
             return name
     return None
+
+
+def robust(robot: str, noise: StepNoise) -> dict | None:
+    """``robot``'s robust record at step ``noise`` (its entry whose ``step_noise`` is the
+    noise's text form, e.g. "0.3,1"), or None."""
+    text = noise.to_text()
+    for rec in entries().get(robot, {}).get("robust", []):
+        if rec["step_noise"] == text:
+            return rec
+    return None
+
+
+def robust_for_table(table: GaitTable, run_budget: int) -> tuple[str, dict] | None:
+    """The built-in robot ``table`` is and its robust record at the table's step noise, if it
+    is one, has one at that noise and the records hold for ``run_budget``; else None."""
+    found = for_table(table, run_budget)
+    if found is None or table.step_noise.is_zero():
+        return None
+    rec = robust(found[0], table.step_noise)
+    return None if rec is None else (found[0], rec)
 
 
 def for_table(table: GaitTable, run_budget: int) -> tuple[str, dict] | None:
