@@ -20,7 +20,8 @@ the extra wall time, scales the timeouts back (x4, an upper bound: wire time doe
 and divides by the modelled real-speed time of the same tests (bench_link.robot_seconds).
 
 Give-up: a robot muted after 3 gait cycles, at real speed with the default timeouts; the time
-from its last report to the error, against the stated bound EVENT_TIMEOUT + 3 READY_TIMEOUT.
+from its last report to the error, against the stated bound (recovery.give_up_s: EVENT_TIMEOUT
++ 3 READY_TIMEOUT).
 """
 
 from __future__ import annotations
@@ -42,13 +43,14 @@ from bench_link import robot_seconds  # noqa: E402
 from pac_host.coverage import parse_turn_cycle  # noqa: E402
 from pac_host.errors import TOOLKIT_ERRORS  # noqa: E402
 from pac_host.model import shifted_table  # noqa: E402
-from pac_host.robot.api import EVENT_TIMEOUT_S, StampRobot  # noqa: E402
+from pac_host.robot.api import StampRobot  # noqa: E402
 from pac_host.robot.connect import EmulatorOptions, connect  # noqa: E402
 from pac_host.robot.evolve import EvolveConfig, evolve  # noqa: E402
 from pac_host.robot.linked import LinkedRobot  # noqa: E402
 from pac_host.robot.observers import open_observer  # noqa: E402
 from pac_host.robot.placement import TrackerPlacer  # noqa: E402
-from pac_protocol.link import READY_TIMEOUT_S, StampLink  # noqa: E402
+from pac_host.robot.recovery import give_up_s  # noqa: E402
+from pac_protocol.link import StampLink  # noqa: E402
 from pac_protocol.port import open_port  # noqa: E402
 from pac_sim.line import Faults  # noqa: E402
 from pac_sim.runner import SimConfig, SimStamp  # noqa: E402
@@ -151,7 +153,7 @@ def give_up_time() -> dict:
         took = time.monotonic() - last[-1]
         for c in (observer, placer, port):
             c.close()
-    bound = EVENT_TIMEOUT_S + 3 * READY_TIMEOUT_S
+    bound = give_up_s()
     return {"seconds_after_last_report": round(took, 2), "bound_s": bound, "error": error,
             "met": bool(error) and took <= bound + 1.0}
 

@@ -27,6 +27,11 @@ class InputError(PacError, ValueError):
     exit_code = 2
 
 
+class FileFault(PacError):
+    """The operating system failed a read or write during a run (a full disk, an I/O error):
+    exit 1. What was written before it stays whole (:mod:`pac_host.files`)."""
+
+
 #: Every error raised on purpose, by the host or by the protocol layer below it.
 TOOLKIT_ERRORS: tuple[type[Exception], ...] = (PacError, PacProtocolError)
 
@@ -64,3 +69,33 @@ def os_error_line(error: OSError | UnicodeDecodeError) -> tuple[str, int]:
     where = error.filename if error.filename is not None else ""
     text = f"{where}: {what}" if where else what
     return text, 2 if isinstance(error, _INPUT_OS_ERRORS) else 1
+
+
+def os_error(error: OSError, path: object = None, doing: str = "") -> PacError:
+    """The typed error for what the operating system refused: one line naming the file
+    (``path``, else the error's own) and the problem; an :class:`InputError` (exit 2) for a
+    path the user named that cannot be used (missing, not a folder, not writable), else a
+    :class:`FileFault` (exit 1). ``doing``: what was being done ("cannot write").
+
+    >>> e = os_error(OSError(28, "No space left on device"), "out/state.json", "cannot write")
+    >>> type(e).__name__, str(e)
+    ('FileFault', 'out/state.json: cannot write (No space left on device)')
+    >>> os_error(PermissionError(13, "Permission denied", "out/t.json")).exit_code
+    2
+    """
+    where = path if path is not None else error.filename
+    what = error.strerror or str(error)
+    text = f"{doing} ({what})" if doing else what
+    if where is not None:
+        text = f"{where}: {text}"
+    return (InputError if isinstance(error, _INPUT_OS_ERRORS) else FileFault)(text)
+
+
+def with_hint(error: PacError, hint: str) -> PacError:
+    """``error`` again, of its own kind (so its exit code), with ``hint`` after its text: what
+    to do next (resume the run, say). For errors made of one message, as the toolkit's are.
+
+    >>> str(with_hint(FileFault("log.jsonl: cannot write"), "resume with --resume OUT"))
+    'log.jsonl: cannot write; resume with --resume OUT'
+    """
+    return type(error)(f"{error}; {hint}")

@@ -13,6 +13,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from pac_host.errors import InputError  # noqa: E402
 from pac_host.files import make_dirs, write_atomic_with  # noqa: E402
 
 METHOD_TITLES = {
@@ -125,9 +126,12 @@ def _save(fig, path: Path) -> Path:
     a full disk or a folder that may not be written is one line naming the plot, and leaves
     no half PNG and every other file as it was."""
     try:
+        kind = path.suffix.lstrip(".").lower() or "png"
+        if kind not in fig.canvas.get_supported_filetypes():
+            raise InputError(f"{path}: a plot is written as .png, .svg or .pdf, not .{kind}")
         make_dirs(path.parent)
         fig.tight_layout()
-        write_atomic_with(path, lambda f: fig.savefig(f, format=path.suffix.lstrip(".") or "png"))
+        write_atomic_with(path, lambda f: fig.savefig(f, format=kind))
     finally:
         plt.close(fig)
     return path

@@ -2,8 +2,9 @@
 
 The package stands alone: every error it raises on purpose is a :class:`PacProtocolError`, which
 the command-line tools above it map to exit codes in one place.
-Failures of the exchange are :class:`ProtocolError`; bad arguments from the caller (a turn cycle
-the Stamp cannot hold, a port that cannot be opened) are :class:`UsageError`.
+Failures of the exchange are :class:`ProtocolError` (among them a port that vanishes mid-run,
+:class:`PortVanished`); bad arguments from the caller (a turn cycle the Stamp cannot hold, a port
+that cannot be opened) are :class:`UsageError`.
 """
 
 from __future__ import annotations
@@ -63,6 +64,12 @@ class BadPayload(MessageError):
 
 class PortError(UsageError):
     """The serial port does not exist, cannot be opened, or is not a serial device."""
+
+
+class PortVanished(ProtocolError):
+    """The serial port failed after it was opened: the device is gone (a USB adapter pulled, a
+    pseudo-terminal whose other end closed). A fault during a run, unlike a :class:`PortError`
+    at the start; nothing on this port can be retried."""
 
 
 class NoAnswer(ProtocolError):

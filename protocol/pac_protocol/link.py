@@ -321,11 +321,22 @@ class StampLink:
 
     # ---- events -------------------------------------------------------------------------------
 
-    def next_event(self, timeout: float = EVENT_TIMEOUT_S) -> Message | None:
-        """The next report (CYCLE, DONE, BOOT), queued or read within ``timeout``, else None."""
+    @property
+    def last_heard(self) -> float:
+        """When the last byte from the Stamp was read (on :attr:`clock`; the link's creation if
+        none yet)."""
+        return self._last_rx
+
+    def next_event(self, timeout: float = EVENT_TIMEOUT_S,
+                   since: float | None = None) -> Message | None:
+        """The next report (CYCLE, DONE, BOOT), queued or read within ``timeout``, else None.
+        ``since`` (e.g. :attr:`last_heard`): count the ``timeout`` from then, not from now, so
+        time the caller spent on the last report does not lengthen a silence; bytes already
+        waiting are read all the same."""
         if self.events:
             return self.events.popleft()
-        deadline = self.clock() + timeout
+        now = self.clock()
+        deadline = now + timeout if since is None else max(since + timeout, now + self.quiet_s)
         while True:
             m = self._next_message(deadline)
             if m is None:

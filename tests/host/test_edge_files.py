@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import pytest
 from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from pac_host.cli.main import main
 
@@ -47,3 +49,55 @@ def test_an_output_path_that_cannot_be_written_is_one_line(tmp_path, args):
     blocked.write_text("")
     line = _one_line_exit_2([a.format(blocked=blocked) for a in args])
     assert "a-file" in line, line
+
+
+# every file a command reads (besides the table, runs, sweep and shapes files above): a sweep's
+# table, pac-sim's, and what `experiment --resume` reads back (evolve's: tests/link)
+RESUMED_CONFIG = '{"format": "pac-experiment-config/1", "options": {}, "typed": []}'
+READERS = {
+    "sweep's actual": (["sweep", "{dir}/sweep.toml", "--out", "{dir}/out"], "bad.json",
+                       {"sweep.toml": "[grid]\nactual = ['bad.json']\n"}),
+    "pac-sim --table": (["--table", "{dir}/bad.json"], "bad.json", {}),
+    "experiment's config.json": (["experiment", "--out", "{dir}", "--resume"], "config.json",
+                                 {}),
+    "experiment's log.jsonl": (["experiment", "--out", "{dir}", "--resume", "--quiet"],
+                               "log.jsonl", {"config.json": RESUMED_CONFIG}),
+    "table show": (["table", "show", "--table", "{dir}/bad.json"], "bad.json", {}),
+}
+
+
+def _undecodable(parts: tuple[bytes, bytes, bytes]) -> bytes:
+    return b"".join(parts)
+
+
+def _not_utf8(data: bytes) -> bool:
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return True
+    return False
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(reader=st.sampled_from(sorted(READERS)),
+       data=st.tuples(st.binary(max_size=12),
+                      st.sampled_from([b"\xff", b"\x80", b"\xc3(", b"\xed\xa0\x80", b"\xf8"]),
+                      st.binary(max_size=12)).map(_undecodable).filter(_not_utf8))
+def test_undecodable_bytes_in_any_file_read_are_one_line(tmp_path_factory, reader, data):
+    """Whatever the bytes and wherever they sit in the file, the command stops before any
+    work with one line naming the file, exit 2."""
+    from pac_sim.cli import main as pac_sim
+
+    args, name, others = READERS[reader]
+    folder = tmp_path_factory.mktemp("read")
+    for other, text in others.items():
+        (folder / other).write_text(text)
+    (folder / name).write_bytes(data)
+    command = pac_sim if reader.startswith("pac-sim") else main
+    res = CliRunner().invoke(command, [a.format(dir=folder) for a in args])
+    assert res.exit_code == 2, res.output
+    assert isinstance(res.exception, SystemExit), res.exception
+    line = res.stderr.strip().splitlines()[-1]
+    assert line.startswith(("pac-host: error: ", "pac-sim: error: ")) and name in line, line
+    assert "Traceback" not in res.output

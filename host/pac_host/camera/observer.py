@@ -222,27 +222,37 @@ def options_from(raw: dict[str, str]) -> CameraOptions:
     return out
 
 
+def check_spec(text: str, emulated: bool) -> None:
+    """Refuse a ``camera:`` spec that :func:`open_camera` cannot use, opening nothing: its
+    options, ``camera:sim`` without the built-in emulator (``emulated``), a camera without
+    ``calib=FILE``."""
+    source_text, raw = parse_spec(text)
+    calib_path = raw.pop("calib", None)
+    options_from(raw)
+    if source_text == "sim" and not emulated:
+        raise InputError("--observer camera:sim is the built-in emulator's virtual camera; "
+                         "it does not apply with --port")
+    if source_text != "sim" and calib_path is None:
+        raise InputError(f"--observer camera:{source_text}: give calib=FILE (from `pac-host "
+                         "camera calibrate`)")
+
+
 def open_camera(text: str, world=None) -> CameraObserver:
     """The observer a ``camera:`` spec names; ``world`` is the built-in emulator's world,
     needed by ``camera:sim``."""
     from pac_host.camera import calibrate as cal
     from pac_host.camera.sources import open_source
 
+    check_spec(text, world is not None)
     source_text, raw = parse_spec(text)
     calib_path = raw.pop("calib", None)
     opts = options_from(raw)
     name = f"camera:{source_text}"
     if source_text == "sim":
-        if world is None:
-            raise InputError("--observer camera:sim is the built-in emulator's virtual camera; "
-                             "it does not apply with --port")
         from pac_host.camera.virtual import sim_source
 
         source, calib = sim_source(world, opts, None if calib_path is None
                                    else cal.load(calib_path))
         return CameraObserver(source, calib, opts, name)
-    if calib_path is None:
-        raise InputError(f"--observer {name}: give calib=FILE (from `pac-host camera "
-                         "calibrate`)")
     calib = cal.load(calib_path)
     return CameraObserver(open_source(source_text), calib, opts, name)

@@ -28,10 +28,11 @@ from pac_host.cli.resume import jsonable, refuse, saved_doc, took_line
 from pac_host.coverage.placement import HAND, parse_placement
 from pac_host.errors import InputError
 from pac_host.model.table import BUILTIN
-from pac_host.robot.connect import connect
+from pac_host.robot.connect import check_connection, connect
 from pac_host.robot.evolve import (
     CONFIG_FORMAT,
     EvolveConfig,
+    check_new_run,
     evolve,
     load_config,
     recovery_summary,
@@ -132,8 +133,6 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         _check_resume(cfg, port)
         if given("generations"):  # a finished run may be carried on further
             cfg = replace(cfg, generations=generations)
-            cfg.check()
-            save_config(root, cfg)
         if port is None:  # the same emulated world as before, unless told otherwise
             for name, value in cfg.robot.get("emulator", {}).items():
                 if not given(name):
@@ -142,6 +141,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
         raise InputError("--out DIR is required (or --resume DIR)")
     else:
         root = out_dir
+        check_new_run(root)
         learn = profile_pal(profile, search_evaluations, model_generations,
                             dict(model_fitness=model_fitness, correction=correction,
                                  structure=structure, tests=tests, operational=operational,
@@ -184,8 +184,13 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            operational_evidence=learn.operational_evidence,
                            search_noise=learn.search_noise,
                            shapes=learn.shapes)
-        cfg.check()
+    # every value in range and every input file read (the model, the library of sweeps; the
+    # emulator's table and effects below) before a port is opened or a file is written
+    cfg.check()
     emu = emulator_options(sim, port)
+    check_connection(port, observer_spec, emu, placer)
+    if resume_dir is not None and given("generations"):
+        save_config(root, cfg)
     with connect(port, observer_spec, emu, ask, confirm, placer=placer) as conn:
         click.echo(f"robot: {conn.description}; observer: {conn.observer.name}")
         if resume_dir is None and isinstance(conn.observer, ManualObserver) and cfg.needs_paths():

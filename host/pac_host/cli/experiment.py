@@ -30,7 +30,7 @@ from pac_host.cli.progress import Progress, quiet_option
 from pac_host.cli.resume import options_doc, resumable
 from pac_host.coverage import DEFAULT_BUDGET, check_budget
 from pac_host.coverage.placement import HAND, WALKS
-from pac_host.errors import InputError
+from pac_host.errors import FileFault, InputError, PacError, with_hint
 from pac_host.experiments.executors import make_executor
 from pac_host.experiments.experiment import (
     OPTIMUM_EVALUATIONS,
@@ -183,13 +183,23 @@ def experiment_cmd(seeds, generations, methods, out_dir, jobs, base_seed, actual
     if scheduler and user:  # a cluster's workers import the project, not the user's file
         raise InputError(f"effect {user[0]}: user-defined effects run with --jobs on this "
                          "machine, not on a --scheduler cluster")
-    with Progress("experiment", quiet, UNITS) as progress, \
-            make_executor(jobs, scheduler, connect_timeout) as engine:
-        summary = run_experiment(out_dir, cfg, model, actual, engine, resume, progress,
-                                 options=_saved_options(cfg))
+    again = f"`pac-host experiment --out {out_dir} --resume` continues it"
+    try:
+        with Progress("experiment", quiet, UNITS) as progress, \
+                make_executor(jobs, scheduler, connect_timeout) as engine:
+            summary = run_experiment(out_dir, cfg, model, actual, engine, resume, progress,
+                                     options=_saved_options(cfg))
+    except FileFault as e:  # a full disk: the runs logged whole are kept
+        if not (Path(out_dir) / "config.json").exists():
+            raise
+        raise with_hint(e, f"{again} (the runs logged whole are kept)") from None
     from pac_host.plots import experiment_plots  # matplotlib: not for `experiment --help`
 
-    plots = experiment_plots(summary, out_dir)
+    try:
+        plots = experiment_plots(summary, out_dir)
+    except PacError as e:  # the results are whole: only the plots are missing
+        raise with_hint(e, f"the results are in {Path(out_dir) / 'summary.json'}; {again} "
+                           "and draws the plots again") from None
     comp = summary["comparison"]
     click.echo(f"optimum on the actual robot ({actual.name}): fitness {summary['optimum']}")
     # on a noisy actual robot every coverage figure below is an expectation (one walk is luck)

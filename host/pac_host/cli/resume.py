@@ -19,6 +19,7 @@ import click
 from click.core import ParameterSource
 
 from pac_host.errors import InputError
+from pac_host.files import read_text
 
 # options that say how or where a run runs, not what it computes: neither saved nor compared
 EXECUTION = frozenset({"out_dir", "resume", "resume_dir", "jobs", "scheduler",
@@ -53,11 +54,12 @@ def saved_doc(folder: Path, name: str, fmt: str, what: str) -> dict:
         raise InputError(f"--resume {folder}: the directory is empty (no {name}); nothing to "
                          "resume")
     path = folder / name
+    if not path.exists():
+        raise InputError(f"--resume {folder}: no {name} there (not {what})")
+    text = read_text(path, "the saved run's options")  # undecodable: one line naming it
     try:
-        doc = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError(f"--resume {folder}: no {name} there (not {what})") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
         raise InputError(f"{path}: not JSON ({e})") from None
     if not isinstance(doc, dict) or doc.get("format") != fmt:
         raise InputError(f"--resume {folder}: {name} is not a {fmt} file (not {what})")

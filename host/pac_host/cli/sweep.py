@@ -10,7 +10,7 @@ import click
 from pac_host.cli.cluster_options import scheduler_options
 from pac_host.cli.progress import Progress, quiet_option
 from pac_host.cli.resume import saved_doc
-from pac_host.errors import InputError
+from pac_host.errors import FileFault, InputError, PacError, with_hint
 from pac_host.experiments.executors import Executor, InProcess, dask_executor, make_executor
 from pac_host.experiments.sweep import load_sweep, run_sweep, varying_keys
 from pac_host.experiments.sweep.runner import CONFIG
@@ -60,18 +60,28 @@ def sweep_cmd(sweep_file, out_dir, jobs, scheduler, connect_timeout, resume, qui
     keys = varying_keys(cells)
     t0 = time.perf_counter()
 
-    with Progress("sweep", quiet, {"cells": "cells"}) as bar, \
-            make_executor(jobs, scheduler, connect_timeout, local=_local) as engine:
-        def progress(event, cell, done, total, seconds):
-            what = "already done" if event == "skipped" else f"done in {seconds:.1f} s"
-            bar("cells", done, total, f"{cell.id} ({cell.label(keys)}): {what}")
+    again = f"`pac-host sweep {sweep_file} --out {out_dir} --resume` continues it"
+    try:
+        with Progress("sweep", quiet, {"cells": "cells"}) as bar, \
+                make_executor(jobs, scheduler, connect_timeout, local=_local) as engine:
+            def progress(event, cell, done, total, seconds):
+                what = "already done" if event == "skipped" else f"done in {seconds:.1f} s"
+                bar("cells", done, total, f"{cell.id} ({cell.label(keys)}): {what}")
 
-        bar("cells", 0, len(cells))
-        doc = run_sweep(cells, out_dir, engine, resume, progress, config=saved)
+            bar("cells", 0, len(cells))
+            doc = run_sweep(cells, out_dir, engine, resume, progress, config=saved)
+    except FileFault as e:  # a full disk: the cells finished are kept
+        if not (Path(out_dir) / CONFIG).exists():
+            raise
+        raise with_hint(e, f"{again} (the cells finished are kept)") from None
     minutes = (time.perf_counter() - t0) / 60
     from pac_host.experiments.sweep.plots import sweep_plots  # matplotlib: not for --help
 
-    plots = sweep_plots(cells, doc["rows"], keys, out_dir)
+    try:
+        plots = sweep_plots(cells, doc["rows"], keys, out_dir)
+    except PacError as e:  # the results are whole: only the plots are missing
+        raise with_hint(e, f"the results are in {Path(out_dir) / 'results.csv'}; {again} "
+                           "and draws the plots again") from None
     click.echo(f"{len(cells)} cells, {len(doc['rows'])} rows in {minutes * 60:.1f} s "
                f"({len(cells) / max(minutes, 1e-9):.2f} cells per minute)")
     click.echo(f"results: {out_dir / 'results.csv'}, {out_dir / 'results.json'}")

@@ -14,7 +14,7 @@ import numpy as np
 
 from pac_host.diagnose.pipeline import Diagnosis
 from pac_host.diagnose.residuals import top_places
-from pac_host.files import write_atomic
+from pac_host.files import make_dirs, write_atomic, write_atomic_with
 from pac_host.model.table import COMPONENTS
 
 FORMAT = "pac-diagnosis/1"
@@ -153,7 +153,7 @@ def write_plots(d: Diagnosis, out_dir: str | Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    make_dirs(out)
     written = []
     rows = d.where["by_gait_cycle"]
     ids = [r["id"] for r in rows]
@@ -209,6 +209,9 @@ def write_plots(d: Diagnosis, out_dir: str | Path) -> list[Path]:
 
 
 def _save(fig, path: Path, plt) -> Path:
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    """The figure written whole (a failure is one line naming it; no half PNG stays)."""
+    try:
+        write_atomic_with(path, lambda f: fig.savefig(f, format="png", dpi=100))
+    finally:
+        plt.close(fig)
     return path

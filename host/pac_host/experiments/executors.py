@@ -139,10 +139,18 @@ def dask_executor(scheduler: str | None = None, jobs: int = 1,
     from distributed import Client, LocalCluster
 
     if scheduler is None:
-        with dask.config.set(WORKER_CONFIG):
-            cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
-        return DaskExecutor(Client(cluster), cluster)
+        cluster = None
+        try:  # a worker that cannot start (no memory, no ports, a broken environment)
+            with dask.config.set(WORKER_CONFIG):
+                cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=logging.ERROR)
+            return DaskExecutor(Client(cluster), cluster)
+        except (RuntimeError, OSError, TimeoutError) as e:
+            if cluster is not None:
+                cluster.close()
+            why = str(e).splitlines()[0] if str(e) else type(e).__name__
+            raise PacError(f"the local Dask cluster of {jobs} workers could not start ({why}); "
+                           "--jobs 1 runs the work in this process, without Dask") from None
     for name in ["distributed", *logging.root.manager.loggerDict]:  # errors reach the user
         if name.startswith("distributed"):                         # as ours, in one line
             logging.getLogger(name).setLevel(logging.CRITICAL)

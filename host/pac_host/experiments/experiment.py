@@ -34,7 +34,7 @@ from pac_host.coverage.placement import HAND, WALKS, placed_fitness, summary
 from pac_host.errors import InputError
 from pac_host.experiments import stats
 from pac_host.experiments.executors import Executor, local_executor
-from pac_host.files import write_atomic
+from pac_host.files import append_text, make_dirs, read_jsonl, write_atomic
 from pac_host.learning import model_ga, pal
 from pac_host.learning.config import NO_MODEL_GA, RUN_THE_GA, recombination_inert
 from pac_host.model import best_known as known_records
@@ -46,8 +46,10 @@ from pac_host.search.optimize import OptimizeConfig, run_chain
 # seed streams; STAGE_PLACED draws the start poses a run's final turn cycle is walked from,
 # STAGE_STEPS the actual robot's step noise in a run's tests (the same for each method of a
 # seed), STAGE_EXPECTED the fresh walks each punctuation's operational turn cycle is measured
-# on, on a noisy actual robot (by seed and punctuation: the same for each method, any --jobs)
-STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED, STAGE_STEPS, STAGE_EXPECTED = range(6)
+# on, on a noisy actual robot (by seed and punctuation: the same for each method, any --jobs),
+# STAGE_OPTIMUM_EXPECTED the fresh walks an optimum run's result is measured on there
+(STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED, STAGE_STEPS, STAGE_EXPECTED,
+ STAGE_OPTIMUM_EXPECTED) = range(7)
 # fresh noisy walks of the actual robot behind each operational turn cycle's expected coverage
 EXPECTED_WALKS = 400
 METHODS = ("full", "partial", "oracle")
@@ -130,16 +132,21 @@ def optimum_run(actual: GaitTable, k: int, cfg: ExperimentConfig) -> dict:
     """One long search on the actual robot's table: its best turn cycle and fitness. With
     ``optimum_search`` "optimize", run k is chain k of ``pac-host optimize --seed BASE_SEED``
     with ``optimum_evaluations`` (starting from the runs' library of sweeps, ``--shapes``);
-    with "cga", a CGA run of ``optimum_generations``."""
+    with "cga", a CGA run of ``optimum_generations``. On an actual robot with step noise the
+    chain searches the expected coverage over noisy walks (``optimize --step-noise``: its
+    evaluations are walks) and its fitness is the result's mean over :data:`EXPECTED_WALKS`
+    fresh walks (``expected``), as each punctuation's operational turn cycle is measured."""
     if cfg.optimum_search == "optimize":
         ocfg = OptimizeConfig(budget=cfg.pal.budget, evaluations=cfg.optimum_evaluations,
-                              seed=cfg.base_seed, shapes=cfg.pal.shapes)
+                              seed=cfg.base_seed, shapes=cfg.pal.shapes,
+                              step_noise=None if actual.step_noise.is_zero()
+                              else actual.step_noise)
         res = run_chain(actual.rows, tuple(actual.effects), ocfg, k, None,
                         cfg.optimum_evaluations)
         genes = np.array(res["genes"], dtype=np.int64)
-        cov = simulate(actual.rows, genes, ocfg.budget, actual.effects)
+        row = _optimum_figures(actual, genes, k, cfg)
         # no wall times: optimum.json is the same byte for byte wherever the runs ran
-        return {"run": k, "turn_cycle": format_turn_cycle(genes), **cov.row(0),
+        return {"run": k, "turn_cycle": format_turn_cycle(genes), **row,
                 "evaluations": res["evaluations"],
                 "best_by_evaluations": [{"evaluations": t["evaluations"], "fitness": t["fitness"]}
                                         for t in res["trace"]]}
@@ -147,9 +154,22 @@ def optimum_run(actual: GaitTable, k: int, cfg: ExperimentConfig) -> dict:
     ccfg = cfg.pal.cga_config()
     pop = cga.random_population(rng, ccfg.population)
     pop, best = cga.evolve(actual.rows, pop, cfg.optimum_generations, rng, ccfg, actual.effects)
-    cov = simulate(actual.rows, pop[0], ccfg.budget, actual.effects)
-    return {"run": k, "turn_cycle": format_turn_cycle(pop[0]), **cov.row(0),
+    return {"run": k, "turn_cycle": format_turn_cycle(pop[0]),
+            **_optimum_figures(actual, pop[0], k, cfg),
             "best_by_generation": [int(fitness_of_score(b)) for b in best[::100]]}
+
+
+def _optimum_figures(actual: GaitTable, genes: np.ndarray, k: int, cfg: ExperimentConfig
+                     ) -> dict:
+    """An optimum run's result on the actual robot: its coverage figures from the start; with
+    step noise its fitness is what it delivers, the mean over fresh walks (``expected``), and
+    its one noise-free walk's is ``noise_free_fitness``."""
+    row = simulate(actual.rows, genes, cfg.pal.budget, actual.effects).row(0)
+    if actual.step_noise.is_zero():
+        return row
+    expected = expected_on_robot(actual, genes, k, 0, cfg, STAGE_OPTIMUM_EXPECTED)
+    return {**row, "noise_free_fitness": row["fitness"], "fitness": expected["mean"],
+            "expected": expected}
 
 
 def pal_run(
@@ -169,7 +189,9 @@ def pal_run(
     fields = {**_pal_fields(cfg.pal), "method": method, "generations": cfg.generations}
     if method == "oracle":
         fields.update(method="partial", model_population=1, model_generations=0,
-                      correction="ga", tests="paper", search_models=1)  # the model is sure
+                      correction="ga", tests="paper", search_models=1,  # the model is sure
+                      known_step_noise=None if actual.step_noise.is_zero()
+                      else actual.step_noise.to_json())  # and so is its noise
         model = actual
     pcfg = pal.PALConfig(**fields)
     rng = _rng(cfg.base_seed, seed, STAGE_PAL)
@@ -192,11 +214,8 @@ def pal_run(
         seconds.append(record["robot_seconds"])
         record["model_error"] = _model_error(effective_rows(st.models[0], st.model_effects), truth)
         record["model"] = st.models[0].round(6).tolist()
-        if log_path is not None:
-            line = json.dumps({"seed": seed, **record}) + "\n"
-            with open(log_path, "a") as f:  # one write per line: appends stay whole
-                f.write(line)
-                f.flush()
+        if log_path is not None:  # one write per line: appends stay whole
+            append_text(log_path, json.dumps({"seed": seed, **record}) + "\n")
 
     state = pal.run(state, robot, rng, pcfg, log)
     return {
@@ -215,7 +234,7 @@ def pal_run(
 
 
 def expected_on_robot(actual: GaitTable, turn_cycle: np.ndarray, seed: int, punctuation: int,
-                      cfg: ExperimentConfig) -> dict:
+                      cfg: ExperimentConfig, stage: int = STAGE_EXPECTED) -> dict:
     """What a turn cycle delivers on the noisy actual robot: its mean fitness over
     :data:`EXPECTED_WALKS` fresh noisy walks (the compiled kernel,
     :mod:`pac_host.coverage.noisy`) drawn from the run's seed and ``punctuation`` (0, 1, ...),
@@ -223,7 +242,7 @@ def expected_on_robot(actual: GaitTable, turn_cycle: np.ndarray, seed: int, punc
     from pac_host.coverage.noisy import NoisyWalks, draw_normals
     from pac_host.learning.operational import Estimate
 
-    z = draw_normals(_rng(cfg.base_seed, seed, STAGE_EXPECTED, punctuation), EXPECTED_WALKS,
+    z = draw_normals(_rng(cfg.base_seed, seed, stage, punctuation), EXPECTED_WALKS,
                      cfg.pal.budget)
     fit = NoisyWalks(actual.rows, actual.step_noise, z, cfg.pal.budget,
                      actual.effects).figures(np.asarray(turn_cycle)[None])[2, 0]
@@ -314,15 +333,11 @@ def default_methods(p: pal.PALConfig) -> tuple[str, ...]:
 def read_complete_runs(log_path: Path, generations: int) -> dict[tuple[int, str], list]:
     """Punctuation records, by (seed, method), of runs whose log reaches ``generations``."""
     runs: dict[tuple[int, str], list] = {}
-    if not log_path.exists():
-        return runs
-    for n, line in enumerate(log_path.read_text().splitlines(), 1):
-        if not line.strip():
-            continue
+    for n, rec in read_jsonl(log_path, "the experiment's log"):  # a torn last line: ignored
         try:
-            rec = json.loads(line)
             runs.setdefault((int(rec["seed"]), rec["method"]), []).append(rec)
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+            int(rec["generation"])
+        except (KeyError, TypeError, ValueError):
             raise InputError(f"{log_path}:{n}: not a punctuation record; cannot resume") from None
     return {k: v for k, v in runs.items()
             if any(r["generation"] >= generations for r in v)}
@@ -431,8 +446,8 @@ def _map_pal_runs(args: list[tuple], jobs: int | Executor, log_path: Path,
         return _map(partial(pal_run, log_path=log_path), args, jobs, done)
 
     def landed(res: tuple[dict, str]) -> None:
-        with open(log_path, "a") as f:
-            f.write(res[1])
+        if res[1]:
+            append_text(log_path, res[1])
         done(res[0])
     return [r for r, _ in _map(pal_run_detached, args, jobs, landed)]
 
@@ -457,7 +472,7 @@ def run_experiment(
     cfg.check()
     model = model or measured_table()
     actual = actual or shifted_table()
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_dirs(out_dir)
     log_path = out_dir / "log.jsonl"
     done_runs = read_complete_runs(log_path, cfg.generations) if resume else {}
     if not resume and log_path.exists() and log_path.stat().st_size > 0:
@@ -495,7 +510,7 @@ def run_experiment(
     searched = max(r["fitness"] for r in optimum_runs)
     observed = max(max(r["coverage"]) for r in results)
     optimum = max(searched, observed)
-    (out_dir / "optimum.json").write_text(json.dumps(
+    write_atomic(out_dir / "optimum.json", json.dumps(
         {"fitness": optimum, "searched": searched, "observed": observed, "runs": optimum_runs,
          "search": _optimum_search(cfg),
          "how": f"the best of {cfg.optimum_runs} {_optimum_search(cfg)['runs']} on the actual "
@@ -525,24 +540,32 @@ def run_experiment(
     return summary
 
 
-def best_known_on(actual: GaitTable, cfg: ExperimentConfig, optimum: int) -> dict:
+def best_known_on(actual: GaitTable, cfg: ExperimentConfig, optimum: float) -> dict:
     """What robot time is measured against: the highest of the experiment's own optimum, the
     package's record for the actual robot (where it is a built-in one, at the records'
-    budget: :mod:`pac_host.model.best_known`) and ``cfg.best_known`` (``--best-known``); with
-    which it is (``used``: "optimum", "built-in" or "given") and the candidates."""
-    rec = known_records.for_table(actual, cfg.pal.budget)
+    budget: :mod:`pac_host.model.best_known`; on a robot with step noise its robust record at
+    that noise, a mean over noisy walks, or none) and ``cfg.best_known`` (``--best-known``);
+    with which it is (``used``: "optimum", "built-in" or "given") and the candidates."""
+    noisy = not actual.step_noise.is_zero()
+    rec = (known_records.robust_for_table(actual, cfg.pal.budget) if noisy
+           else known_records.for_table(actual, cfg.pal.budget))
     found = [(optimum, "optimum", "this experiment's optimum on the actual robot")]
+    built_in = None
     if rec is not None:
-        found.append((rec[1]["fitness"], "built-in",
-                      f"the best known on the built-in robot {rec[0]} ({rec[1]['turn_cycle']}; "
-                      "pac_host/model/best_known.json)"))
+        name, r = rec
+        value = r["mean"] if noisy else r["fitness"]
+        what = (f"the best known on the built-in robot {name} with step noise "
+                f"{r['step_noise']} (mean over {r['walks']} walks)" if noisy
+                else f"the best known on the built-in robot {name}")
+        found.append((value, "built-in",
+                      f"{what} ({r['turn_cycle']}; pac_host/model/best_known.json)"))
+        built_in = {"robot": name, "turn_cycle": r["turn_cycle"], "fitness": value,
+                    **({"step_noise": r["step_noise"], "walks": r["walks"]} if noisy else {})}
     if cfg.best_known is not None:
         found.append((cfg.best_known, "given", "--best-known"))
     fitness, used, source = max(found, key=lambda f: f[0])  # a tie: the first, own optimum
     return {"fitness": fitness, "used": used, "source": source, "optimum": optimum,
-            "built_in": ({"robot": rec[0], "turn_cycle": rec[1]["turn_cycle"],
-                          "fitness": rec[1]["fitness"]} if rec is not None else None),
-            "given": cfg.best_known}
+            "built_in": built_in, "given": cfg.best_known}
 
 
 def _optimum_search(cfg: ExperimentConfig) -> dict:

@@ -76,8 +76,8 @@ class RunReport:
 class StampRobot:
     """One session with a ServoBot: HELLO first, then typed commands.
 
-    ``event_timeout``: the longest silence tolerated during a run before asking STATUS; if that
-    is not answered either, :class:`RobotSilent` is raised.
+    ``event_timeout``: the longest silence tolerated during a run (since the last byte heard)
+    before asking STATUS; if that is not answered either, :class:`RobotSilent` is raised.
     """
 
     def __init__(self, link: StampLink, event_timeout: float = EVENT_TIMEOUT_S) -> None:
@@ -199,7 +199,9 @@ class StampRobot:
         dropped = 0
         misfit: StatusReply | None = None
         while True:
-            ev = self.link.next_event(self.event_timeout)
+            # a silence counts from the last byte heard, not from when the last report was
+            # handled (an observer may take a while over it)
+            ev = self.link.next_event(self.event_timeout, since=self.link.last_heard)
             if ev is None:
                 st = self._status_during_run(n, seen)
                 if st.state != State.IDLE:

@@ -19,7 +19,7 @@ from pac_host.errors import InputError
 from pac_host.model.effects import effective_rows
 from pac_host.robot.api import EVENT_TIMEOUT_S, StampRobot
 from pac_host.robot.emulator import EmulatorOptions, open_emulator
-from pac_host.robot.observers import Ask, Observer, TrackerObserver, open_observer
+from pac_host.robot.observers import Ask, Observer, TrackerObserver, check_spec, open_observer
 from pac_host.robot.placement import OperatorPlacer, Placer, TrackerPlacer
 from pac_protocol.link import READY_TIMEOUT_S
 
@@ -32,6 +32,23 @@ class Connection:
     description: str
     truth: np.ndarray | None = None  # the emulator's true rows (effects applied), if known
     extra: dict = field(default_factory=dict)
+
+
+def check_connection(port: str | None, observer_spec: str | None,
+                     emulator: EmulatorOptions | None, placer: str = "operator") -> None:
+    """Refuse what :func:`connect` would refuse for the options alone, opening nothing (no
+    port, emulator, socket or camera): a command checks them before it opens or writes
+    anything."""
+    if port is None:
+        if emulator is None:
+            raise InputError("no --port and no emulator options")
+    elif observer_spec is None:
+        raise InputError("--observer is needed with --port: tracker:HOST:PORT, pipe:PATH "
+                         "or manual")
+    elif placer == "tracker" and not observer_spec.startswith("tracker:"):
+        raise InputError("--placer tracker needs --observer tracker:HOST:PORT")
+    if observer_spec is not None:
+        check_spec(observer_spec, emulated=port is None)
 
 
 @contextlib.contextmanager
@@ -48,21 +65,15 @@ def connect(
 
     With a port, ``placer`` is ``operator`` (a person, through ``confirm``) or ``tracker``
     (PLACE lines to the ``tracker:HOST:PORT`` observer: a ``pac-sim`` process's world)."""
+    check_connection(port, observer_spec, emulator, placer)
     with contextlib.ExitStack() as stack:
         if port is None:
-            if emulator is None:
-                raise InputError("no --port and no emulator options")
             yield _emulated(stack, observer_spec, emulator, ask, manual_mode)
             return
-        if observer_spec is None:
-            raise InputError("--observer is needed with --port: tracker:HOST:PORT, pipe:PATH "
-                             "or manual")
         observer = open_observer(observer_spec, ask, manual_mode)
         stack.callback(observer.close)
         place: Placer
         if placer == "tracker":
-            if not observer_spec.startswith("tracker:"):
-                raise InputError("--placer tracker needs --observer tracker:HOST:PORT")
             host, _, tport = observer_spec.removeprefix("tracker:").rpartition(":")
             place = TrackerPlacer(host, int(tport))
             stack.callback(place.close)

@@ -14,7 +14,9 @@ Everything a run produces lives in one output directory:
 - ``model.json`` (pac-gait-table/1) and ``turn_cycle.json``: the current best model and the
   operational solution;
 - ``coverage_path.png`` and ``learning_progress.png``;
-- ``state.json``: the PAL state and generator after the last complete punctuation.
+- ``state.json``: the PAL state and generator after the last complete punctuation, with that
+  punctuation's log record and runs (written first: it marks a punctuation complete, see
+  :func:`_persist`).
 
 Results depend only on the seed (and what the robot does): the CGA and model GA draw from one
 seeded generator saved in ``state.json``, and each run's tracker noise in the emulator is seeded
@@ -35,9 +37,9 @@ import numpy as np
 
 from pac_host import limits
 from pac_host.coverage import START_POSE, detect_blocks, format_turn_cycle
-from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError
+from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError, with_hint
 from pac_host.experiments.experiment import ExperimentConfig, initial_population
-from pac_host.files import write_atomic
+from pac_host.files import append_text, cut_torn_line, read_jsonl, read_text, write_atomic
 from pac_host.learning import pal
 from pac_host.learning.config import model_generations_for
 from pac_host.model.table import GaitTable, resolve_table, save_table
@@ -90,6 +92,8 @@ class EvolveConfig:
     search_noise: bool = pal.PALConfig.search_noise  # runs saved before it: False
 
     def check(self) -> None:
+        """Every value in its range and the model file read: one line (InputError) before
+        anything is opened or written."""
         if self.method not in ("partial", "full"):
             raise InputError(f"--method must be partial or full, got {self.method!r}")
         if self.model_fitness not in ("coverage", "steps"):
@@ -105,6 +109,10 @@ class EvolveConfig:
             if getattr(self, name) is not None:  # model_generations None: by the correction
                 bound.check(getattr(self, name), f"--{name.replace('_', '-')}")
         self.pal().check()
+        try:
+            resolve_table(self.model)
+        except InputError as e:
+            raise InputError(f"--model: {e}") from None
 
     def pal(self) -> pal.PALConfig:
         return pal.PALConfig(
@@ -155,15 +163,16 @@ class EvolveDir:
 
 
 def _read_jsonl(path: Path) -> list[dict]:
-    if not path.exists():
-        return []
-    out = []
-    for n, line in enumerate(path.read_text().splitlines(), 1):
-        if line.strip():
-            try:
-                out.append(json.loads(line))
-            except json.JSONDecodeError:
-                raise InputError(f"{path}:{n}: not a JSON line; cannot resume") from None
+    """A log's records; a torn last line (a full disk, a crash) is ignored
+    (:func:`pac_host.files.read_jsonl`)."""
+    return [r for _, r in _numbered(path)]
+
+
+def _numbered(path: Path) -> list[tuple[int, dict]]:
+    out = read_jsonl(path, "the run's log")
+    for n, r in out:
+        if not isinstance(r, dict):
+            raise InputError(f"{path}:{n}: not a JSON object; cannot resume")
     return out
 
 
@@ -177,15 +186,21 @@ def error_on_used(model: np.ndarray, truth: np.ndarray, used: list[int]) -> dict
     return {"F": round(float(e[0]), 4), "T": round(float(e[1]), 4), "dH": round(float(e[2]), 4)}
 
 
+def check_new_run(root: Path) -> None:
+    """Refuse to start a run in a folder that holds one (a complete punctuation is there:
+    never overwrite it by accident); a command asks before it opens anything."""
+    if EvolveDir(root).state.exists():
+        raise InputError(f"{root} holds an evolve run: use --resume {root} to continue it, "
+                         "or another --out")
+
+
 def _start(d: EvolveDir, cfg: EvolveConfig) -> tuple[pal.PALState, np.random.Generator, bool]:
     """A fresh state; writes config.json. The bool says no punctuation is done yet."""
-    if d.state.exists():  # a complete punctuation is there: never overwrite it by accident
-        raise InputError(f"{d.root} holds an evolve run: use --resume {d.root} to continue it, "
-                         "or another --out")
+    check_new_run(d.root)
     d.root.mkdir(parents=True, exist_ok=True)
     for p in (d.log, d.runs, d.state):
         p.unlink(missing_ok=True)
-    d.runs.touch()  # exists even when the observer gives counts, not paths
+    append_text(d.runs, "")  # exists even when the observer gives counts, not paths
     save_config(d.root, cfg)
     model = resolve_table(cfg.model)
     pcfg = cfg.pal()
@@ -215,20 +230,52 @@ def load_config(root: Path) -> EvolveConfig:
                            for k, v in doc.items() if k in hints})
 
 
-def _resume(d: EvolveDir) -> tuple[pal.PALState, np.random.Generator, bool]:
-    """The state after the last complete punctuation; later lines of log and runs dropped."""
+def _resume(d: EvolveDir, model_name: str) -> tuple[pal.PALState, np.random.Generator, bool]:
+    """The state after the last complete punctuation, and the run's files made to agree with
+    it. The state is a punctuation's commit point (:func:`_persist` writes it first, with the
+    punctuation's log record and observed runs): the lines of log.jsonl and runs.jsonl of its
+    generation and later ones are replaced by its copy, so a punctuation whose appends a full
+    disk or a crash cut short is whole again (a torn last line ignored), and one whose state
+    was not written is redone. model.json and turn_cycle.json are written again from the
+    state, and a torn last line of observations.jsonl is cut before the resume is noted."""
     if not d.state.exists():
         raise InputError(f"--resume {d.root}: no complete punctuation yet (no state.json); "
                          "start it again without --resume")
     try:
-        state, rng = pal.state_from_json(json.loads(d.state.read_text()))
+        doc = json.loads(read_text(d.state, "the run's state"))
     except json.JSONDecodeError as e:
         raise InputError(f"{d.state}: not JSON ({e})") from None
+    try:
+        state, rng = pal.state_from_json(doc)
+    except InputError as e:
+        raise InputError(f"{d.state}: {e}") from None
     g = state.generation
-    log = [r for r in _read_jsonl(d.log) if r["generation"] <= g]
-    runs = [r for r in _read_jsonl(d.runs) if _run_generation(r["run_id"]) <= g]
+    last = doc.get("punctuation")  # states saved before it: none, the lines of g are kept
+    if last is not None and not (isinstance(last, dict) and isinstance(last.get("log"), dict)
+                                 and isinstance(last.get("runs"), list)):
+        raise InputError(f"{d.state}: punctuation must hold its log record and runs")
+
+    def kept(path: Path, generation_of: Callable[[dict], int]) -> list[dict]:
+        out = []
+        for n, r in _numbered(path):
+            try:
+                gen = generation_of(r)
+            except (KeyError, TypeError, ValueError, AttributeError):
+                raise InputError(f"{path}:{n}: not a record of an evolve run; cannot "
+                                 "resume") from None
+            if gen < g or (gen == g and last is None):
+                out.append(r)
+        return out
+
+    log = kept(d.log, lambda r: int(r["generation"]))
+    runs = kept(d.runs, lambda r: _run_generation(r["run_id"]))
+    if last is not None:
+        log.append(last["log"])
+        runs += last["runs"]
     write_atomic(d.log, "".join(json.dumps(r) + "\n" for r in log))
     write_atomic(d.runs, "".join(json.dumps(r) + "\n" for r in runs))
+    _write_results(d, state, model_name)
+    cut_torn_line(d.observations)
     AppendLog(d.observations)({"type": "resume", "generation": g, "time": time.time()})
     return state, rng, False
 
@@ -248,7 +295,8 @@ def evolve(
     walked in each (see :class:`~pac_host.robot.linked.LinkedRobot`)."""
     cfg.check()
     d = EvolveDir(root)
-    state, rng, fresh = _resume(d) if resume else _start(d, cfg)
+    model_name = resolve_table(cfg.model).name
+    state, rng, fresh = _resume(d, model_name) if resume else _start(d, cfg)
     pcfg = cfg.pal()
     obs_log = AppendLog(d.observations)
     obs_log({"type": "session", "robot": conn.description, "observer": conn.observer.name,
@@ -257,7 +305,6 @@ def evolve(
                         START_POSE)
     robot.progress = progress
     records = _read_jsonl(d.log)
-    model_name = resolve_table(cfg.model).name
     cga_s = 0.0
     total = len(records) + punctuations_left(state.generation, cfg, fresh)
     if not fresh:
@@ -276,8 +323,7 @@ def evolve(
         except TOOLKIT_ERRORS as e:
             raise RunInterrupted(
                 f"run {robot.current_run}: {e}. Everything observed is in {d.observations}; "
-                f"`pac-host evolve --resume {d.root}` continues from the last complete "
-                "punctuation") from None
+                f"{_continue_hint(d)}") from None
         rec["run_ids"] = [f"g{rec['generation']}-t{i}" for i in range(len(rec["tests"]))]
         rec["model"] = state.models[0].round(6).tolist()
         if conn.truth is not None:
@@ -288,7 +334,10 @@ def evolve(
         between, at = timing_names(pcfg)
         rec["timing"] = {"robot_s": round(timer.seconds, 4), between: round(cga_s, 4),
                          at: round(time.perf_counter() - t0 - timer.seconds, 4)}
-        _persist(d, state, rng, rec, robot, timer, model_name, records, pcfg.search)
+        try:
+            _persist(d, state, rng, rec, robot, timer, model_name, records, pcfg.search)
+        except PacError as e:  # a full disk: what is written is whole (pac_host.files)
+            raise with_hint(e, _continue_hint(d)) from None
         if on_punctuation is not None:
             on_punctuation(rec)
         if progress is not None:
@@ -390,16 +439,34 @@ def path_title(rec: dict, punctuation: int) -> str:
 def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: dict,
              robot: LinkedRobot, timer: _TimedRobot, model_name: str, records: list[dict],
              search: str = "cga") -> None:
-    """Write a complete punctuation: runs, log line, model, turn cycle, plots, then the state
-    (last, atomically: a crash before it makes resume redo this punctuation). ``search``:
-    what ran between punctuations (the plots' axis)."""
+    """Write a complete punctuation. The state goes first, whole and on the disk
+    (:func:`~pac_host.files.write_atomic`), and carries the punctuation's log record and
+    observed runs: it is the punctuation's commit point. Until it is written the previous
+    state stands and a resume redoes this punctuation; once it is, the punctuation is
+    complete whatever becomes of the writes after it (a full disk, a crash): the runs and the
+    log line appended, then the model, the turn cycle and the plots, which a resume restores
+    from it (:func:`_resume`). One order and one copy, rather than a transaction over files.
+    ``search``: what ran between punctuations (the plots' axis)."""
     from pac_host.plots import coverage_path, learning_progress
 
+    doc = pal.state_to_json(state, rng)
+    doc["punctuation"] = {"log": rec, "runs": robot.runs}
+    write_atomic(d.state, json.dumps(doc) + "\n")
     runs_log, log = AppendLog(d.runs), AppendLog(d.log)
     for r in robot.runs:
         runs_log(r)
     log(rec)
     records.append(rec)
+    _write_results(d, state, model_name)
+    best = timer.results[0] if timer.results else None
+    if best is not None and best.poses is not None:
+        coverage_path(best.poses, detect_blocks(best.poses), d.path_png,
+                      path_title(rec, len(records)), best.figures())
+    learning_progress(records, d.progress_png, "PAL on the robot", search)
+
+
+def _write_results(d: EvolveDir, state: pal.PALState, model_name: str) -> None:
+    """model.json and turn_cycle.json of a punctuation's state."""
     table = GaitTable(state.models[0], state.model_effects,
                       f"{model_name} evolved to generation {state.generation}")
     save_table(table, d.model)
@@ -407,9 +474,12 @@ def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: d
         "format": "pac-turn-cycle/1", "turn_cycle": format_turn_cycle(state.operational),
         "genes": state.operational.tolist(), "fitness_on_robot": state.operational_fitness,
         "generation": state.generation}, indent=1) + "\n")
-    best = timer.results[0] if timer.results else None
-    if best is not None and best.poses is not None:
-        coverage_path(best.poses, detect_blocks(best.poses), d.path_png,
-                      path_title(rec, len(records)), best.figures())
-    learning_progress(records, d.progress_png, "PAL on the robot", search)
-    write_atomic(d.state, json.dumps(pal.state_to_json(state, rng)) + "\n")
+
+
+def _continue_hint(d: EvolveDir) -> str:
+    """How to go on after a run stopped: resume from the last complete punctuation, or, before
+    the first, start again."""
+    if d.state.exists():
+        return (f"`pac-host evolve --resume {d.root}` continues from the last complete "
+                "punctuation")
+    return f"no punctuation is complete yet: run the same command again (--out {d.root})"

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from pac_host.coverage import START_POSE, coverage_of_poses, expand
-from pac_host.errors import InputError, PacError
+from pac_host.errors import PacError
+from pac_host.files import append_text
 from pac_host.learning.testing import TestResult
 from pac_host.robot.api import StampRobot
 from pac_host.robot.observers import Observation, Observer, ObserverError
@@ -48,12 +49,7 @@ class AppendLog:
     def __call__(self, doc: dict) -> None:
         if self.path is None:
             return
-        try:
-            with open(self.path, "a") as f:
-                f.write(json.dumps(doc) + "\n")
-                f.flush()
-        except OSError as e:
-            raise InputError(f"cannot write {self.path}: {e.strerror}") from None
+        append_text(self.path, json.dumps(doc) + "\n")  # a full disk: one line, no half line
 
 
 def run_seed(base_seed: int, *key: int) -> int:

@@ -308,25 +308,39 @@ class ManualObserver:
 # ---- from a command-line spec ----------------------------------------------------------------
 
 
+def check_spec(spec: str, emulated: bool = False) -> None:
+    """Refuse an ``--observer`` that :func:`open_observer` cannot use, opening nothing (no
+    socket, pipe or camera): ``tracker:HOST:PORT``, ``pipe:PATH``, ``camera:SOURCE[,options]``
+    or ``manual``; ``emulated``: the built-in emulator plays the robot (``camera:sim``)."""
+    kind, _, rest = spec.partition(":")
+    if kind == "camera":
+        from pac_host.camera.observer import check_spec as check_camera
+
+        check_camera(rest, emulated)
+    elif kind == "tracker":
+        host, sep, port = rest.rpartition(":")
+        if not sep or not port.isdigit() or not 0 < int(port) < 65536:
+            raise InputError(f"--observer tracker:HOST:PORT expected, got {spec!r}")
+    elif not (kind == "pipe" and rest) and spec != "manual":
+        raise InputError(f"--observer: expected tracker:HOST:PORT, pipe:PATH, camera:SOURCE "
+                         f"or manual, got {spec!r}")
+
+
 def open_observer(spec: str, ask: Ask | None = None, manual_mode: str = "figures",
                   timeout: float = TRACKER_TIMEOUT_S, world: object | None = None) -> Observer:
     """``tracker:HOST:PORT``, ``pipe:PATH``, ``camera:SOURCE[,options]`` or ``manual`` (needs
     ``ask``); ``world`` is the built-in emulator's, for ``camera:sim``."""
+    check_spec(spec, world is not None)
     kind, _, rest = spec.partition(":")
     if kind == "camera":
         from pac_host.camera.observer import open_camera
 
         return open_camera(rest, world)
     if kind == "tracker":
-        host, sep, port = rest.rpartition(":")
-        if not sep or not port.isdigit() or not 0 < int(port) < 65536:
-            raise InputError(f"--observer tracker:HOST:PORT expected, got {spec!r}")
+        host, _, port = rest.rpartition(":")
         return TrackerObserver(open_tcp(host or "127.0.0.1", int(port), spec), timeout)
-    if kind == "pipe" and rest:
+    if kind == "pipe":
         return TrackerObserver(open_pipe(rest, spec), timeout)
-    if spec == "manual":
-        if ask is None:
-            raise InputError("--observer manual needs an operator at a prompt")
-        return ManualObserver(ask, manual_mode)
-    raise InputError(f"--observer: expected tracker:HOST:PORT, pipe:PATH, camera:SOURCE or "
-                     f"manual, got {spec!r}")
+    if ask is None:
+        raise InputError("--observer manual needs an operator at a prompt")
+    return ManualObserver(ask, manual_mode)

@@ -15,12 +15,28 @@ from dataclasses import asdict, dataclass, field
 from typing import ClassVar, TypeVar
 
 from pac_host.errors import TOOLKIT_ERRORS, PacError
-from pac_host.robot.api import RobotReset, RobotSilent, StampRobot
+from pac_host.robot.api import EVENT_TIMEOUT_S, RobotReset, RobotSilent, StampRobot
 from pac_protocol.errors import NoAnswer, StampReset
+from pac_protocol.link import READY_TIMEOUT_S
 from pac_protocol.messages import State
 
 REDOS = 2  # a broken-down test is redone from its start at most this often
 IDLE_POLLS = 10  # STATUS asked at most this often for a stopped robot to become idle
+# a robot that falls silent mid-run: after the run's silence (the event timeout) the host waits
+# one READY timeout for each request of the give-up, STATUS during the run, then the redo's
+# STOP and STATUS (a line on which not a byte arrives is not retried: pac_protocol.link)
+SILENT_READY_WAITS = 3
+
+
+def give_up_s(event_timeout: float = EVENT_TIMEOUT_S,
+              ready_timeout: float = READY_TIMEOUT_S) -> float:
+    """Seconds from the last byte of a robot that falls silent mid-run (switched off, a
+    pulled cable) to the error: the one definition the docs state.
+
+    >>> give_up_s()
+    8.5
+    """
+    return event_timeout + SILENT_READY_WAITS * ready_timeout
 # the robot's link broke down; an observer's error is not among them: a marker lost from a
 # camera's view, or a tracker that stopped, happens again on a redo
 BROKEN_LINK = (RobotSilent, RobotReset, NoAnswer, StampReset)

@@ -21,15 +21,19 @@ False
 from __future__ import annotations
 
 import difflib
+import math
 import typing
 from collections.abc import Iterator
-from dataclasses import fields, is_dataclass, replace
+from dataclasses import dataclass, fields, is_dataclass, replace
 from functools import cache
 from typing import Any
 
+from pac_host import limits
+from pac_host.coverage import MAX_REPS
 from pac_host.errors import InputError
 from pac_host.experiments.experiment import ExperimentConfig, default_methods
 from pac_host.learning import pal, profiles
+from pac_host.search.shorten import MAX_SHORTEN_AFTER
 from pac_host.typed_values import coerce
 
 TABLE_SETTINGS = {"actual": "shifted", "model": "measured", "effects": ()}
@@ -48,6 +52,79 @@ SET_BY_THE_EXPERIMENT = {
 }
 
 Path_ = tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Span:
+    """An interval a number may take (``lo_open``/``hi_open``: the end itself is out; ``hi``
+    None: no upper end), and what such a number is."""
+
+    lo: float
+    hi: float | None
+    what: str = ""
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def describe(self) -> str:
+        hi = "inf)" if self.hi is None else f"{self.hi:g}{')' if self.hi_open else ']'}"
+        return f"{'(' if self.lo_open else '['}{self.lo:g}, {hi}"
+
+    def check(self, value: float, name: str) -> None:
+        ok = math.isfinite(value) and (value > self.lo if self.lo_open else value >= self.lo)
+        if ok and self.hi is not None:
+            ok = value < self.hi if self.hi_open else value <= self.hi
+        if not ok:
+            why = f" ({self.what})" if self.what else ""
+            raise InputError(f"{name} must be in {self.describe()}{why}, got {value}")
+
+
+PROBABILITY = Span(0.0, 1.0, "a probability")
+_POPULATION = limits.Bound(0, limits.CGA_POPULATION.hi)
+# The range of every number a sweep may set, checked as the sweep file is read, before any cell
+# runs (tests/host/test_sweep_checks.py checks that every numeric setting has one). Choices
+# (methods, correction, ...) are checked by the configs themselves.
+RANGES: dict[Path_, limits.Bound | Span] = {
+    ("seeds",): limits.SEEDS,
+    ("generations",): limits.GENERATIONS,
+    ("base_seed",): limits.SEED,
+    ("initial_generations",): limits.GENERATIONS,
+    ("optimum_runs",): limits.RUNS,
+    ("optimum_generations",): limits.GENERATIONS,
+    ("optimum_evaluations",): limits.EVALUATIONS,
+    ("best_known",): limits.Bound(1, 10**6, "a coverage fitness"),
+    ("pal", "interval"): limits.INTERVAL,
+    ("pal", "model_generations"): limits.MODEL_GENERATIONS,
+    ("pal", "cga_population"): limits.CGA_POPULATION,
+    ("pal", "model_population"): limits.MODEL_POPULATION,
+    ("pal", "budget"): limits.BUDGET,
+    ("pal", "perturb_prob"): PROBABILITY,
+    ("pal", "perturb_reps"): limits.Bound(0, MAX_REPS, "a gene's repetitions"),
+    ("pal", "search_evaluations"): limits.Bound(0, limits.SEARCH_EVALUATIONS.hi),
+    ("pal", "search_models"): limits.SEARCH_MODELS,
+    ("pal", "search_chains"): limits.CHAINS,
+    ("pal", "explore"): Span(0.0, 1.0, "a share of the budget", hi_open=True),
+    ("pal", "kick_length_cost"): Span(0.0, None, "cm"),
+    ("pal", "shorten_after"): limits.Bound(0, MAX_SHORTEN_AFTER, "kicks"),
+    ("pal", "cga", "elite"): _POPULATION,
+    ("pal", "cga", "tournament_size"): limits.Bound(1, limits.CGA_POPULATION.hi),
+    ("pal", "cga", "crossover_rate"): PROBABILITY,
+    ("pal", "cga", "bit_mutation_rate"): PROBABILITY,
+    ("pal", "model", "elite"): _POPULATION,
+    ("pal", "model", "tournament_size"): limits.Bound(1, limits.MODEL_POPULATION.hi),
+    ("pal", "model", "crossover_rate"): PROBABILITY,
+    ("pal", "model", "gene_mutation_rate"): PROBABILITY,
+    ("pal", "model", "scale"): Span(0.0, None, "a standard deviation, cm, cm and deg"),
+}
+
+
+def _in_range(key: str, value: Any) -> Any:
+    """``value`` (checked against its type) if it is in its setting's range (each of a list's
+    numbers), else one line naming the setting and the range."""
+    bound = RANGES.get(setting_names().get(key, ()))
+    if bound is not None and value is not None:
+        for v in value if isinstance(value, list) else [value]:
+            bound.check(v, f"setting {key!r}")
+    return value
 
 
 def _leaves(cls: type, prefix: Path_ = ()) -> Iterator[tuple[Path_, Any]]:
@@ -114,7 +191,8 @@ def check_value(key: str, value: Any) -> Any:
     if key == "effects":
         return (coerce(value, tuple[str, ...], f"setting {key!r}") if not isinstance(value, str)
                 else [value])
-    return coerce(value, _field_types()[setting_names()[key]], f"setting {key!r}")
+    return _in_range(key, coerce(value, _field_types()[setting_names()[key]],
+                                 f"setting {key!r}"))
 
 
 def _set(obj: Any, path: Path_, value: Any) -> Any:
@@ -141,4 +219,10 @@ def experiment_config(settings: dict[str, Any]) -> ExperimentConfig:
     if "methods" not in settings:
         cfg = replace(cfg, methods=default_methods(cfg.pal))
     cfg.check()
+    for ga, population in (("cga", cfg.pal.cga_population), ("model", cfg.pal.model_population)):
+        for name, most in (("elite", population - 1), ("tournament_size", population)):
+            if getattr(getattr(cfg.pal, ga), name) > most:
+                raise InputError(f"setting 'pal.{ga}.{name}' must be at most {most} with "
+                                 f"{ga}_population {population}, got "
+                                 f"{getattr(getattr(cfg.pal, ga), name)}")
     return cfg
