@@ -25,11 +25,29 @@ class ObserverError(PacError):
     """An observer gave no usable observation (malformed line, closed stream, silence)."""
 
 
+MAX_LOST = 0.25  # a test may miss up to this share of its gait cycles' poses (gaps), no more
+LOST_GRACE = 32  # gait cycles: before so many, a burst of lost ones is not yet too many
+
+
+def too_many_lost(lost: int, cycles: int, fraction: float = MAX_LOST,
+                  final: bool = False) -> bool:
+    """Whether ``lost`` unseen gait cycles (gaps in the path) among the ``cycles`` walked so
+    far are too many for the test to go on: more than ``fraction`` of them at the test's end
+    (``final``), and while it walks more than ``fraction`` of at least :data:`LOST_GRACE`
+    (a camera gone blind stops the test early, a burst at its start does not).
+
+    >>> too_many_lost(8, 10), too_many_lost(9, 10), too_many_lost(3, 10, final=True)
+    (False, True, True)
+    """
+    return lost > fraction * (cycles if final else max(cycles, LOST_GRACE))
+
+
 @dataclass(frozen=True)
 class Observation:
-    """What an observer saw of one run: the poses after each gait cycle (n, 3), or the coverage
-    figures the operator counted, or only the final pose; and the pose the robot stood at
-    before its first gait cycle, if the observer saw it (``start``: a camera does)."""
+    """What an observer saw of one run: the poses after each gait cycle (n, 3; a row of NaN
+    for a gait cycle it could not see), or the coverage figures the operator counted, or only
+    the final pose; and the pose the robot stood at before its first gait cycle, if the
+    observer saw it (``start``: a camera does)."""
 
     poses: np.ndarray | None = None
     figures: dict | None = None

@@ -124,16 +124,18 @@ def test_camera_in_the_loop_gets_the_tracker_fed_results(tmp_path):
 
 def test_a_robot_leaving_the_view_is_a_lost_observation_mid_run(tmp_path):
     # a robot that walks straight ahead whatever gait cycle it is sent: its first test leaves
-    # the camera's view across the far edge, whichever turn cycle the run tests
+    # the camera's view across the far edge, whichever turn cycle the run tests; each gait
+    # cycle it is not seen is a gap, and the ninth stops the test (more than a quarter of 32)
     table = tmp_path / "straight.json"
     save_table(GaitTable(np.tile([15.0, 0.0, 0.0], (32, 1)), name="straight"), table)
     out = tmp_path / "lost"
     res = _invoke("evolve", "--out", out, "--budget", "30", *SMALL, "--sim-table", table,
-                  "--observer", "camera:sim,frames=1")
-    _one_error_line(res, 1, "lost observation of gait cycle")
+                  "--observer", "camera:sim,frames=1,cameras=1")
+    _one_error_line(res, 1, "lost observation of 9 of")
     obs = [json.loads(x) for x in (out / "observations.jsonl").read_text().splitlines()]
     lost = [o for o in obs if o["type"] == "lost"]
-    assert len(lost) == 1
+    assert len(lost) == 9 and len({o["run_id"] for o in lost}) == 1
+    assert [o["cycle"] for o in lost] == list(range(lost[0]["cycle"], lost[0]["cycle"] + 9))
     seen = [o for o in obs if o["type"] == "pose" and o["run_id"] == lost[0]["run_id"]]
     assert [o["cycle"] for o in seen] == list(range(0, lost[0]["cycle"]))  # from its start
 

@@ -1,5 +1,6 @@
 """The camera: observer and the POSE server: poses after each gait cycle from the frames of
-its window, lost observations logged and raised (never made up), what was seen kept."""
+its window, lost observations logged and kept as gaps (never made up), too many raised, what
+was seen kept."""
 
 from __future__ import annotations
 
@@ -25,15 +26,18 @@ def _source(rig, path, start=START):
 def test_observer_takes_each_cycles_pose_and_reports_a_lost_marker(rig):
     path = [(45.0, 30.0 + 10 * i, 90.0 - 15 * i) for i in range(4)] + [None]
     log = []
-    obs = CameraObserver(_source(rig, path), rig[1], CameraOptions(frames=2), "camera:test")
+    obs = CameraObserver(_source(rig, path), rig[1],
+                         CameraOptions(frames=2, retries=1, max_lost=0.1), "camera:test")
     obs.begin("r1", 0, log.append)
-    for k in range(1, 5):
+    for k in range(1, 6):
         obs.on_cycle(k)
-    with pytest.raises(ObserverError, match="lost observation of gait cycle 5 of run r1: "
-                       "robot marker 0 not seen in 2 frame"):
-        obs.on_cycle(5)
+    assert log[-1] == {"type": "lost", "run_id": "r1", "cycle": 5,
+                       "why": "robot marker 0 not seen in 2 frame(s) (looked 2 times)"}
+    with pytest.raises(ObserverError, match=r"lost observation of 1 of 5 gait cycles of run r1 "
+                       r"\(more than 10% .*\); the last, gait cycle 5: robot marker 0 not seen"):
+        obs.finish(5)  # one of five is more than a tenth
     poses = [r["pose"] for r in log if r["type"] == "pose" and r["cycle"] > 0]
-    assert len(poses) == 4 and log[-1]["type"] == "lost" and log[-1]["cycle"] == 5
+    assert len(poses) == 4
     err = np.abs(np.array(poses) - np.array(path[:4]))
     assert err[:, :2].max() < 0.5 and err[:, 2].max() < 1.5  # unwrapped: 90 .. 45
 
@@ -41,12 +45,15 @@ def test_observer_takes_each_cycles_pose_and_reports_a_lost_marker(rig):
 def test_an_impossible_jump_is_lost_not_used(rig):
     path = [(45.0, 30.0, 90.0), (150.0, 250.0, 90.0)]
     log = []
-    obs = CameraObserver(_source(rig, path), rig[1], CameraOptions(frames=1), "camera:test")
+    obs = CameraObserver(_source(rig, path), rig[1], CameraOptions(frames=1, retries=0),
+                         "camera:test")
     obs.begin("r2", 0, log.append)
     obs.on_cycle(1)
-    with pytest.raises(ObserverError, match="from its last pose"):
-        obs.on_cycle(2)
+    obs.on_cycle(2)
     assert [(r["type"], r["cycle"]) for r in log] == [("pose", 0), ("pose", 1), ("lost", 2)]
+    assert "from its last pose" in log[-1]["why"]
+    with pytest.raises(ObserverError, match="lost observation of 1 of 2 gait cycles"):
+        obs.finish(2)
 
 
 def test_the_start_pose_is_seen_before_the_first_gait_cycle(rig):
@@ -76,11 +83,15 @@ def test_the_start_pose_is_seen_before_the_first_gait_cycle(rig):
 
 def test_a_lost_cycle_report_is_a_lost_observation(rig):
     path = [(45.0, 30.0, 90.0)] * 3
+    log = []
     obs = CameraObserver(_source(rig, path), rig[1], CameraOptions(frames=1), "camera:test")
-    obs.begin("r3", 0, lambda _: None)
+    obs.begin("r3", 0, log.append)
     obs.on_cycle(1)
-    with pytest.raises(ObserverError, match="gait cycle 2 .* CYCLE report was lost"):
-        obs.on_cycle(3)
+    obs.on_cycle(3)
+    assert [r["cycle"] for r in log if r["type"] == "lost"] == [2]
+    assert "CYCLE report was lost" in log[-2]["why"] and log[-1]["cycle"] == 3
+    with pytest.raises(ObserverError, match="gait cycle 2: its CYCLE report was lost"):
+        obs.finish(3)
 
 
 def test_an_empty_window_is_a_stale_camera():
@@ -97,8 +108,11 @@ def test_an_empty_window_is_a_stale_camera():
 
     obs = CameraObserver(Stalled(), reference_rig()[1], CameraOptions(), "camera:0")
     obs.begin("r4", 10, lambda _: None)
-    with pytest.raises(ObserverError, match="no fresh frame within 0.1 s"):
-        obs.on_cycle(11)
+    for k in range(11, 19):  # eight gaps: a burst, not yet too many
+        obs.on_cycle(k)
+    with pytest.raises(ObserverError, match="lost observation of 9 of 9 gait cycles of run r4 "
+                       ".* no fresh frame within 0.1 s"):
+        obs.on_cycle(19)
 
 
 def test_serve_feeds_the_tracker_observer(rig):
@@ -120,9 +134,11 @@ def test_serve_feeds_the_tracker_observer(rig):
             assert np.abs(got - np.array(path[:3]))[:, :2].max() < 0.5
             assert np.abs(got - np.array(path[:3]))[:, 2].max() < 1.5
             obs.begin("r6", 3, log.append)  # cycle 4: the robot has left the view
-            with pytest.raises(ObserverError, match="lost observation of gait cycle 1 of run "
-                               "r6: robot marker 0 not seen"):
-                obs.on_cycle(4)
+            obs.on_cycle(4)
+            assert log[-1]["type"] == "lost" and "robot marker 0 not seen" in log[-1]["why"]
+            with pytest.raises(ObserverError, match="lost observation of 1 of 1 gait cycles "
+                               "of run r6"):
+                obs.finish(1)
         finally:
             obs.close()
     finally:

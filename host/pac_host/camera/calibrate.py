@@ -444,10 +444,19 @@ def floor_observations(frames: Iterable[np.ndarray], layout: Layout) -> tuple[Co
     n = 0
     for f in frames:
         n += 1
-        for i, c in detect(det, f).items():
-            if i in known:
+        found = detect(det, f)
+        for i, c in found.items():
+            if i in known and not _inside_another(c, i, found):
                 seen.setdefault(i, []).append(c)
     return {i: np.median(np.array(cs), axis=0) for i, cs in seen.items()}, n
+
+
+def _inside_another(c: np.ndarray, i: int, found: Corners) -> bool:
+    """Whether marker ``i``'s centre lies inside another marker found: a misread of that
+    marker's bits, never a marker of its own."""
+    centre = tuple(float(v) for v in c.mean(axis=0))
+    return any(j != i and cv2.pointPolygonTest(o.astype(np.float32).reshape(-1, 1, 2), centre,
+                                               False) > 0 for j, o in found.items())
 
 
 def focal_from_homography(H_floor_to_img: np.ndarray, principal: Sequence[float]) -> float | None:

@@ -16,16 +16,27 @@ from pac_host.camera.layout import AREA_X, AREA_Y, BLOCK_CM, heading_rotation
 def check_image(frame: np.ndarray, calib: Calibration, corners: Corners,
                 pose: Sequence[float] | None, height: float) -> np.ndarray:
     img = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR) if frame.ndim == 2 else frame.copy()
-    s = np.linspace(0, 1, 60)[:, None]
 
-    def poly(a, b, h: float = 0.0) -> np.ndarray:
-        pts = np.asarray(a) + s * (np.asarray(b) - np.asarray(a))
-        return np.round(calib.from_floor(pts, h)).astype(np.int32)
+    iw, ih = calib.size
 
-    lines = [poly((x, AREA_Y[0]), (x, AREA_Y[1]))
-             for x in np.arange(AREA_X[0], AREA_X[1] + 1, BLOCK_CM)]
-    lines += [poly((AREA_X[0], y), (AREA_X[1], y))
-              for y in np.arange(AREA_Y[0], AREA_Y[1] + 1, BLOCK_CM)]
+    def poly(a, b, z: float = 0.0) -> list[np.ndarray]:
+        """The line a-b as drawn, in pieces where the lens model maps it into the image and
+        back (not where it folds far outside the view)."""
+        a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+        s = np.linspace(0, 1, max(60, int(np.hypot(*(b - a)) / 5)))[:, None]
+        pts = a + s * (b - a)
+        px = calib.from_floor(pts, z)
+        ok = (np.hypot(*(calib.to_plane(px, z) - pts).T) < 0.5) & np.all(
+            (px > [-iw, -ih]) & (px < [2 * iw, 2 * ih]), axis=1)
+        cuts = np.split(np.arange(len(pts)), np.nonzero(np.diff(ok.astype(int)))[0] + 1)
+        return [np.round(px[i]).astype(np.int32) for i in cuts if ok[i[0]] and len(i) > 1]
+
+    _, _, wy0, wy1 = calib.layout.watched
+    y0, y1 = max(AREA_Y[0], wy0), max(AREA_Y[0], wy1)  # the area's blocks watched
+    lines = [p for x in np.arange(AREA_X[0], AREA_X[1] + 1, BLOCK_CM)
+             for p in poly((x, y0), (x, y1))]
+    lines += [p for y in np.arange(AREA_Y[0], y1 + 1, BLOCK_CM) if y >= y0
+              for p in poly((AREA_X[0], y), (AREA_X[1], y))]
     cv2.polylines(img, lines, False, (0, 200, 255), 1, cv2.LINE_AA)
     if corners:
         ids = np.array(sorted(corners), dtype=np.int32).reshape(-1, 1)

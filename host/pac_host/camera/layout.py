@@ -15,9 +15,12 @@ from pac_host.coverage import BLOCK_CM  # noqa: F401  (the blocks the camera dra
 from pac_host.errors import InputError
 
 DICTIONARY = "DICT_4X4_50"  # few, large bits: robust at ~20 px per marker
+# the same 4x4 markers with more ids (the first 50 are DICT_4X4_50's), for a floor of many
+DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_4X4_1000")
 BOARD_DICTIONARY = "DICT_5X5_100"  # the lens board's own ids, never mistaken for floor markers
 AREA_X = (0.0, 180.0)
 AREA_Y = (0.0, 300.0)  # the part of the (upward unbounded) area a camera is set up to see
+MARKER_SPACING = 75.0  # cm between the floor markers' rows (at most)
 
 
 def dictionary(name: str) -> cv2.aruco.Dictionary:
@@ -56,13 +59,36 @@ class Board:
                                       dictionary(BOARD_DICTIONARY))
 
 
-def default_floor(size: float = 12.0, margin: float = 10.0) -> tuple[FloorMarker, ...]:
-    """Ten markers just outside the area's long sides, every 75 cm from y = 0 to 300: the robot
+def default_floor(size: float = 12.0, margin: float = 10.0, y_range=AREA_Y,
+                  spacing: float = MARKER_SPACING) -> tuple[FloorMarker, ...]:
+    """Markers just outside the area's long sides, in rows at most ``spacing`` cm apart from
+    ``y_range``'s start to its end (ten, every 75 cm from y = 0 to 300, by default): the robot
     never covers them and a camera that sees the area sees them."""
     xs = (AREA_X[0] - margin - size / 2, AREA_X[1] + margin + size / 2)
-    ys = np.linspace(AREA_Y[0], AREA_Y[1], 5)
+    ys = np.linspace(y_range[0], y_range[1], int(np.ceil((y_range[1] - y_range[0]) / spacing
+                                                         - 1e-9)) + 1)
     return tuple(FloorMarker(1 + i * 2 + j, float(x), float(y), size)
                  for i, y in enumerate(ys) for j, x in enumerate(xs))
+
+
+def grid_floor(watched: tuple[float, float, float, float], spacing: float,
+               size: float = 12.0) -> tuple[FloorMarker, ...]:
+    """Markers on a lattice at most ``spacing`` cm apart over the floor ``watched`` (x0, x1,
+    y0, y1), for cameras set in a grid over it (each sees several wherever it hangs)."""
+    x0, x1, y0, y1 = watched
+    xs = np.linspace(x0, x1, int(np.ceil((x1 - x0) / spacing - 1e-9)) + 1)
+    ys = np.linspace(y0, y1, int(np.ceil((y1 - y0) / spacing - 1e-9)) + 1)
+    return tuple(FloorMarker(1 + i * len(xs) + j, float(x), float(y), size)
+                 for i, y in enumerate(ys) for j, x in enumerate(xs))
+
+
+def dictionary_for(ids: int) -> str:
+    """The smallest 4x4 dictionary with ``ids`` markers (ids 0 .. ids - 1)."""
+    for name in DICTIONARIES:
+        if ids <= int(name.rsplit("_", 1)[1]):
+            return name
+    raise InputError(f"{ids} markers are more than the largest 4x4 dictionary holds "
+                     f"({DICTIONARIES[-1]}); space the floor markers farther apart")
 
 
 @dataclass(frozen=True)
@@ -70,22 +96,30 @@ class Layout:
     floor: tuple[FloorMarker, ...] = field(default_factory=default_floor)
     robot: RobotMarker = RobotMarker()
     dictionary: str = DICTIONARY
+    # the floor the camera (or the cameras of a rig) watch, x0, x1, y0, y1 cm: where the
+    # robot's marker is looked for (and the error map drawn); the area's first 300 cm by default
+    watched: tuple[float, float, float, float] = (*AREA_X, *AREA_Y)
 
     def floor_by_id(self) -> dict[int, FloorMarker]:
         return {m.id: m for m in self.floor}
 
     def to_json(self) -> dict:
         return {"dictionary": self.dictionary,
-                "floor": [vars(m) for m in self.floor], "robot": vars(self.robot)}
+                "floor": [vars(m) for m in self.floor], "robot": vars(self.robot),
+                "watched": list(self.watched)}
 
     @staticmethod
     def from_json(doc: dict) -> Layout:
         try:
+            watched = tuple(float(v) for v in doc.get("watched", (*AREA_X, *AREA_Y)))
+            if len(watched) != 4 or not (watched[0] < watched[1] and watched[2] < watched[3]):
+                raise ValueError(f"watched must be [x0, x1, y0, y1], x0 < x1, y0 < y1, got "
+                                 f"{list(watched)}")
             return Layout(tuple(FloorMarker(int(m["id"]), float(m["x"]), float(m["y"]),
                                             float(m["size"])) for m in doc["floor"]),
                           RobotMarker(**{k: float(v) if k != "id" else int(v)
                                          for k, v in doc["robot"].items()}),
-                          str(doc["dictionary"]))
+                          str(doc["dictionary"]), watched)
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"marker layout: missing or bad field ({e})") from None
 

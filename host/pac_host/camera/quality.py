@@ -313,15 +313,16 @@ def homography_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray) -
 def pose_error_map(cal, cov: np.ndarray, center_sigma: np.ndarray, noise_px: float,
                    misfit_cm: float = 0.0, step: float = MAP_STEP_CM) -> dict:
     """The position error (cm, RMS) to expect for the robot's marker centred at each point of
-    a grid over the area, at its height: the homography's uncertainty (``cov``, from its fit),
-    the noise of the marker's corners (``noise_px`` per corner, through the local cm per
-    pixel), the parallax error of the camera centre's uncertainty (``center_sigma``, cm, per
-    axis), and ``misfit_cm`` everywhere (what no model corrects). None where the marker is
-    out of view."""
+    a grid over the watched floor (the layout's), at its height: the homography's
+    uncertainty (``cov``, from its fit), the noise of the marker's corners (``noise_px`` per
+    corner, through the local cm per pixel), the parallax error of the camera centre's
+    uncertainty (``center_sigma``, cm, per axis), and ``misfit_cm`` everywhere (what no model
+    corrects). None where the marker is out of view."""
     marker = cal.layout.robot
     hm, c = marker.height, cal.center
-    xs = np.arange(AREA_X[0], AREA_X[1] + 1e-9, step)
-    ys = np.arange(AREA_Y[0], AREA_Y[1] + 1e-9, step)
+    x0, x1, y0, y1 = cal.layout.watched
+    xs = np.arange(x0, x1 + 1e-9, step)
+    ys = np.arange(y0, y1 + 1e-9, step)
     gx, gy = np.meshgrid(xs, ys)
     pts = np.column_stack([gx.ravel(), gy.ravel()])
     n = len(pts)
@@ -331,6 +332,10 @@ def pose_error_map(cal, cov: np.ndarray, center_sigma: np.ndarray, noise_px: flo
     corners = cal.from_floor((pts[:, None, :] + offs).reshape(-1, 2), hm).reshape(n, 4, 2)
     w, h = cal.size
     seen = np.all((corners >= 1) & (corners <= [w - 2, h - 2]), axis=(1, 2))
+    # and not folded into the image by the lens model far outside the view it was fitted on
+    back = cal.to_plane(corners.reshape(-1, 2), hm).reshape(n, 4, 2)
+    seen &= np.all(np.hypot(*(back - (pts[:, None, :] + offs)).transpose(2, 0, 1)) < 0.5,
+                   axis=1)
     # the local cm per pixel at the marker's centre (its pixel moved by one pixel)
     px = cal.from_floor(pts, hm)
     jx = cal.to_plane(px + [0.5, 0], hm) - cal.to_plane(px - [0.5, 0], hm)

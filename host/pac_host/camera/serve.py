@@ -4,7 +4,8 @@ the camera can sit on another machine.
 One client at a time. On connecting it gets a header line (:data:`ASK_HEADER`); for each gait
 cycle it sends ``CYCLE <power_on> <index>`` (index 1 = a run's first gait cycle) and gets, from
 the frames of the listening window that follows, ``POSE <seq> 32 <power_on> <x> <y> <h>`` (32:
-the camera does not know the gait) or ``LOST <power_on> <why>``.
+the camera does not know the gait) or ``LOST <power_on> <why>``. A window that gives no pose
+is looked at again, as the ``camera:`` observer does (``retries``; a live camera only).
 """
 
 from __future__ import annotations
@@ -40,14 +41,19 @@ class PoseServer:
         power_on, index = int(parts[1]), int(parts[2])
         prev = last.get("pose") if index > 1 else None
         ref = prev[2] if prev is not None else self.finder.opts.heading0
-        try:
-            frames = self.source.window(self.finder.opts.frames, self.finder.opts.window,
-                                        power_on)
-        except ObserverError as e:
-            return f"LOST {power_on} {e}"
-        pose, _, why = self.finder.in_window(frames, ref)
-        if pose is not None:
-            why = self.finder.impossible(pose, prev)
+        opts = self.finder.opts
+        looks = 1 + (opts.retries if getattr(self.source, "now", False) else 0)
+        why = "not looked"
+        for _ in range(looks):
+            try:
+                frames = self.source.window(opts.frames, opts.window, power_on)
+            except ObserverError as e:
+                return f"LOST {power_on} {e}"
+            pose, _, why = self.finder.in_window(frames, ref)
+            if pose is not None:
+                why = self.finder.impossible(pose, prev)
+            if not why:
+                break
         if why:
             last.pop("pose", None)
             return f"LOST {power_on} {why}"

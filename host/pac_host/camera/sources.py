@@ -145,23 +145,40 @@ class FolderSource:
 class RenderSource:
     """The virtual camera: ``pose_of(key)`` says where the robot is (None: not in view).
     Its sensor noise restarts for each run from ``seed`` and the run's id, so a run's frames
-    depend on the run alone (a resumed run sees what an uninterrupted one saw)."""
+    depend on the run alone (a resumed run sees what an uninterrupted one saw).
+
+    ``walking`` (0..1, off by default): how often the first window of a gait cycle opens
+    while the robot still walks, its frames showing it ``speed`` cm apart along its heading,
+    arriving at its pose with the window's last frame (a window looked at again for the same
+    gait cycle shows it standing)."""
 
     def __init__(self, renderer: Renderer,
                  pose_of: Callable[[int | None], Sequence[float] | None],
-                 seed: int = 0) -> None:
+                 seed: int = 0, walking: float = 0.0, speed: float = 0.7) -> None:
         self.name = "virtual camera"
         self.live = False
         self.now = True
         self.renderer, self.pose_of, self.seed = renderer, pose_of, seed
+        self.walking, self.speed = walking, speed
         self.rng = np.random.default_rng(seed)
+        self._walk_rng = np.random.default_rng([seed, 3])
+        self._last_key: object = object()
 
     def begin_run(self, run_id: str) -> None:
         key = [self.seed, *run_id.encode()]
         self.rng = np.random.default_rng(np.random.SeedSequence(key))
+        self._walk_rng = np.random.default_rng(np.random.SeedSequence([*key, 3]))
+        self._last_key = object()
 
     def window(self, n: int, seconds: float, key: int | None = None) -> list[np.ndarray]:
         pose = self.pose_of(key)
+        first, self._last_key = key != self._last_key, key
+        if (pose is not None and self.walking > 0 and first
+                and self._walk_rng.random() < self.walking):
+            h = np.radians(pose[2])
+            back = np.array([np.sin(h), np.cos(h), 0.0]) * self.speed
+            return [self.renderer.frame(np.asarray(pose, dtype=np.float64) - (n - 1 - k) * back,
+                                        self.rng) for k in range(n)]
         return [self.renderer.frame(pose, self.rng) for _ in range(n)]
 
     def close(self) -> None:

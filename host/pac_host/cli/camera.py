@@ -67,28 +67,127 @@ layout_option = click.option("--layout", "layout_path", type=click.Path(dir_okay
 
 @click.group("camera")
 def camera() -> None:
-    """An overhead camera with fiducial markers (docs/how-to/camera.md): sheets to print, grab
-    frames,
-    calibrate, check, serve poses, render a virtual camera's frames; `--observer camera:...`
-    for evolve and measure."""
+    """An overhead camera with fiducial markers (docs/how-to/camera.md): sheets to print, plan
+    the cameras of a long area, grab frames, calibrate, check, serve poses, render a virtual
+    camera's frames; `--observer camera:...` (several cameras joined by +) for evolve and
+    measure."""
     _need_cv2()
+
+
+def _resolution(text: str | None) -> tuple[int, int] | None:
+    if text is None:
+        return None
+    w, sep, h = text.lower().partition("x")
+    if not (sep and w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
+        raise InputError(f"--resolution: expected WIDTHxHEIGHT pixels, e.g. 640x480, got "
+                         f"{text!r}")
+    return int(w), int(h)
 
 
 @camera.command("sheets")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path))
 @layout_option
-def sheets_cmd(out_dir: Path, layout_path: Path | None) -> None:
+@click.option("--resolution", default=None, metavar="WxH",
+              help="The camera's image size (with --camera-height and --fov: the robot "
+                   "marker's size is suggested for it, and printed at it).")
+@click.option("--camera-height", default=None, type=float, metavar="CM",
+              help="The lens's height above the floor.")
+@click.option("--fov", default=None, type=float, metavar="DEG",
+              help="The camera's horizontal field of view.")
+@click.option("--robot-size", default=None, type=float, metavar="CM",
+              help="Print the robot's marker this size (its white plate 4 cm wider).")
+def sheets_cmd(out_dir: Path, layout_path: Path | None, resolution: str | None,
+               camera_height: float | None, fov: float | None,
+               robot_size: float | None) -> None:
     """Write the sheets to print (markers.pdf: robot marker, floor markers, lens board, each at
-    its true size at 100 %), floor_plan.png and layout.json."""
-    from pac_host.camera.sheets import write_floor_plan, write_sheets
+    its true size at 100 %), floor_plan.png and layout.json. Given the camera (--resolution,
+    --camera-height, --fov), suggests the robot marker's size: at least 30 pixels across."""
+    from dataclasses import replace
+
+    from pac_host.camera.sheets import (
+        A4_CM,
+        MARKER_PX,
+        floor_px_per_cm,
+        suggest_marker_size,
+        write_floor_plan,
+        write_sheets,
+    )
 
     layout = _layout(layout_path)
+    size = _resolution(resolution)
+    cam = (size, camera_height, fov)
+    if any(v is not None for v in cam) and any(v is None for v in cam):
+        raise InputError("give the camera with all of --resolution, --camera-height and --fov")
+    if robot_size is not None and not 1 <= robot_size <= 40:
+        raise InputError(f"--robot-size must be 1..40 cm, got {robot_size:g}")
+    suggested = None
+    if size is not None:
+        z = layout.robot.height
+        ppc = floor_px_per_cm(size, camera_height, fov, z)
+        suggested = suggest_marker_size(size, camera_height, fov, z)
+        click.echo(f"camera {size[0]}x{size[1]}, {camera_height:g} cm up, {fov:g} deg across: "
+                   f"{ppc:.2f} px per cm at the robot marker's height ({z:g} cm), looking "
+                   f"straight down; the robot marker needs {suggested:g} cm for {MARKER_PX} px "
+                   f"({layout.robot.size:g} cm: {layout.robot.size * ppc:.0f} px)")
+        if robot_size is None and layout_path is None:
+            robot_size = max(suggested, layout.robot.size)
+    if robot_size is not None:
+        r = layout.robot
+        layout = replace(layout, robot=replace(r, size=robot_size,
+                                               plate=robot_size + (r.plate - r.size)))
+    if suggested is not None and layout.robot.size < suggested:
+        click.echo(f"warning: a robot marker of {layout.robot.size:g} cm is smaller than the "
+                   f"{suggested:g} cm suggested: it may be lost when blurred")
     out_dir.mkdir(parents=True, exist_ok=True)
     pages = write_sheets(out_dir / "markers.pdf", layout)
     write_floor_plan(out_dir / "floor_plan.png", layout)
     (out_dir / "layout.json").write_text(json.dumps(layout.to_json(), indent=1) + "\n")
-    click.echo(f"wrote {out_dir / 'markers.pdf'} ({pages} A4 pages; print at 100 %, check the "
-               f"10 cm bar), floor_plan.png and layout.json")
+    a3 = ", the robot's A3" if layout.robot.plate > A4_CM[0] - 1 else ""
+    click.echo(f"wrote {out_dir / 'markers.pdf'} ({pages} A4 pages{a3}; print at 100 %, check the "
+               f"10 cm bar), floor_plan.png and layout.json (robot marker "
+               f"{layout.robot.size:g} cm on a {layout.robot.plate:g} cm plate)")
+
+
+@camera.command("layout")
+@click.option("--length", default=1000.0, show_default=True, type=float, metavar="CM",
+              help="How much of the area (180 cm wide) to watch, from its start.")
+@click.option("--height", default=250.0, show_default=True, type=float, metavar="CM",
+              help="The cameras' lenses above the floor.")
+@click.option("--fov", default=75.0, show_default=True, type=float, metavar="DEG",
+              help="The webcams' horizontal field of view.")
+@click.option("--size", "size_text", default="640x480", show_default=True, metavar="WxH",
+              help="The webcams' image size, pixels.")
+@click.option("--overlap", default=40.0, show_default=True, type=float, metavar="CM",
+              help="Neighbouring cameras' views of the robot's marker overlap by this at least.")
+@click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False, path_type=Path),
+              help="Write layout.json (give it to sheets and calibrate with --layout), "
+                   "floor_plan.png (the markers and each camera's view) and rig_plan.json.")
+def layout_cmd(length, height, fov, size_text, overlap, out_dir) -> None:
+    """Plan the cameras for a long area: how many webcams, where, how high, what overlap,
+    the robot marker's size in pixels, and the floor markers for them (computed from the
+    field of view and the height: docs/how-to/camera.md section 7)."""
+    from pac_host.camera.plan import strip_plan
+    from pac_host.camera.sheets import write_floor_plan
+
+    try:
+        w, h = (int(v) for v in size_text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--size: expected WIDTHxHEIGHT pixels, got {size_text!r}") from None
+    if min(w, h) < 16:
+        raise InputError(f"--size {w}x{h} is not a webcam's image")
+    plan = strip_plan(length, height=height, size=(w, h), fov=fov, overlap=overlap)
+    layout = plan.layout()
+    for line in plan.lines(layout):
+        click.echo(line)
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "layout.json").write_text(json.dumps(layout.to_json(), indent=1) + "\n")
+        write_floor_plan(out_dir / "floor_plan.png", layout, plan)
+        doc = {"height_cm": plan.height, "image_size": list(plan.size), "focal_px": plan.focal,
+               "cameras": [{"x_cm": x, "y_cm": y} for x, y in plan.centres()],
+               "lines": plan.lines(layout)}
+        (out_dir / "rig_plan.json").write_text(json.dumps(doc, indent=1) + "\n")
+        click.echo(f"wrote {out_dir / 'layout.json'}, floor_plan.png and rig_plan.json")
 
 
 @camera.command("render")
@@ -100,21 +199,31 @@ def sheets_cmd(out_dir: Path, layout_path: Path | None) -> None:
 @click.option("--board", "n_board", default=12, show_default=True, type=int,
               help="Frames of the lens board.")
 @click.option("--noise", default=3.0, show_default=True, type=float, help="Grey levels.")
+@click.option("--motion-blur", default=0.0, show_default=True, type=float, metavar="PX",
+              help="The robot's plate smeared this many pixels along its heading.")
+@click.option("--jpeg", default=0, show_default=True, type=click.IntRange(0, 100),
+              help="JPEG quality each frame is compressed at (0: none).")
+@click.option("--light-field", default=0.0, show_default=True, type=float, metavar="A",
+              help="Patches of light and shade, gain 1 +- A.")
 @click.option("--seed", default=0, show_default=True, type=Bounded(limits.SEED))
-def render_cmd(out_dir: Path, poses, n_floor: int, n_board: int, noise: float, seed: int) -> None:
+def render_cmd(out_dir: Path, poses, n_floor: int, n_board: int, noise: float,
+               motion_blur: float, jpeg: int, light_field: float, seed: int) -> None:
     """Frames of the virtual camera (the reference set-up: 640x480, 2.5 m up, a distorting
-    lens): OUT/floor, OUT/board and OUT/robot folders and OUT/truth.json, to try calibrate
-    and check without a camera."""
+    lens; optionally with a real camera's motion blur, JPEG and patchy light): OUT/floor,
+    OUT/board and OUT/robot folders and OUT/truth.json, to try calibrate and check without a
+    camera."""
     import cv2
     import numpy as np
 
     from pac_host.camera.layout import Board
     from pac_host.camera.render import Imaging, Renderer, board_poses, standard_camera
 
-    if min(n_floor, n_board) < 0 or noise < 0:
-        raise InputError("--floor, --board and --noise must be >= 0")
+    if min(n_floor, n_board) < 0 or min(noise, motion_blur) < 0 or not 0 <= light_field < 1:
+        raise InputError("--floor, --board, --noise and --motion-blur must be >= 0, "
+                         "--light-field in [0, 1)")
     cam = standard_camera()
-    r = Renderer(cam, imaging=Imaging(noise=noise))
+    r = Renderer(cam, imaging=Imaging(noise=noise, motion_blur=motion_blur, jpeg=jpeg,
+                                      light_field=light_field, seed=seed))
     rng = np.random.default_rng(seed)
     truth = {"camera_center_cm": cam.center.tolist(), "K": cam.K.tolist(),
              "dist": cam.dist.tolist(), "robot": []}

@@ -46,6 +46,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pac_host.coverage import expand
+from pac_host.coverage.gaps import seen_stretches
 from pac_host.diagnose import Run, split_runs
 from pac_host.diagnose.noise import StepNoiseFit, estimate_step_noise
 from pac_host.diagnose.pipeline import select_effects
@@ -70,11 +71,24 @@ SIGMA_FLOOR = 1e-3  # smallest step noise used (noise-free simulated robots)
 
 @dataclass(frozen=True)
 class Observed:
-    """One observed test: the gait ids executed and the observed poses (start pose first)."""
+    """One observed test: the gait ids executed and the observed poses (start pose first; a
+    NaN pose for a gait cycle the observer could not see: a gap)."""
 
     gait_ids: np.ndarray  # (n,)
     poses: np.ndarray  # (n + 1, 3)
     cycles_since_power_on: int = 0
+
+
+def seen_parts(observed: Observed) -> tuple[Observed, ...]:
+    """An observed test whose path has gaps (NaN poses: gait cycles the observer could not
+    see) as the stretches seen end to end, each from a seen pose; a step next to a gap is
+    dropped. A test without gaps is itself."""
+    poses = np.asarray(observed.poses, dtype=np.float64)
+    if np.isfinite(poses).all():
+        return (observed,)
+    return tuple(Observed(np.asarray(observed.gait_ids)[a:b], poses[a:b + 1],
+                          observed.cycles_since_power_on + a)
+                 for a, b in seen_stretches(poses))
 
 
 def expand_ids(turn_cycle: np.ndarray, budget: int) -> np.ndarray:
@@ -118,9 +132,24 @@ class Posterior:
 
 
 def _runs(observed: Sequence[Observed]) -> list[Run]:
-    return [Run(f"t{i}", np.asarray(o.poses[0], dtype=np.float64), np.asarray(o.gait_ids),
-                np.asarray(o.poses[1:], dtype=np.float64), int(o.cycles_since_power_on))
-            for i, o in enumerate(observed) if len(o.gait_ids) > 0]
+    """The tests as runs of the diagnosis, ``t<i>``; a test with gaps as its stretches seen
+    end to end (:func:`seen_parts`), ``t<i>/<k>``."""
+    out = []
+    for i, whole in enumerate(observed):
+        parts = seen_parts(whole)
+        for k, o in enumerate(parts):
+            if len(o.gait_ids) > 0:
+                out.append(Run(f"t{i}" if o is whole else f"t{i}/{k}",
+                               np.asarray(o.poses[0], dtype=np.float64), np.asarray(o.gait_ids),
+                               np.asarray(o.poses[1:], dtype=np.float64),
+                               int(o.cycles_since_power_on)))
+    return out
+
+
+def _latest(runs: Sequence[Run], n: int) -> list[Run]:
+    """The runs of the latest ``n`` tests (a test seen with gaps is several runs, t<i>/<k>)."""
+    tests = set(list(dict.fromkeys(r.run_id.split("/")[0] for r in runs))[-n:])
+    return [r for r in runs if r.run_id.split("/")[0] in tests]
 
 
 def step_noise(observed: Sequence[Observed]) -> StepNoiseFit | None:
@@ -143,7 +172,7 @@ def fit_structure(base: GaitTable, runs: Sequence[Run], rng: np.random.Generator
     first step is left out): a robot placed by hand starts at a nominal pose, or one read by
     another instrument than the steps' poses, and that one error passed for a drift or a sag.
     """
-    runs = [_free_start(r) for r in list(runs)[-STRUCTURE_RUNS:] if r.n >= 2]
+    runs = [_free_start(r) for r in _latest(runs, STRUCTURE_RUNS) if r.n >= 2]
     if len(runs) < MIN_RUNS_FOR_EFFECTS:
         return ()
     have = {e.name for e in base.effects}

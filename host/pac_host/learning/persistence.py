@@ -10,6 +10,14 @@ from pac_host.learning import model_fit
 from pac_host.learning.state import PALState
 
 
+def _poses_json(poses: np.ndarray) -> list:
+    """Observed poses as JSON: a gap (NaN: a gait cycle not seen) as null, which reads back as
+    NaN."""
+    if np.isfinite(poses).all():
+        return poses.tolist()
+    return [[v if np.isfinite(v) else None for v in p] for p in poses.tolist()]
+
+
 def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
     """Everything needed to resume a PAL run exactly: the state and the generator's state.
 
@@ -26,7 +34,7 @@ def state_to_json(state: PALState, rng: np.random.Generator) -> dict:
         "operational_score": state.operational_score,
         "operational_fitness": state.operational_fitness,
         "base": None if state.base is None else state.base.to_json(),
-        "observed": [{"gait_ids": o.gait_ids.tolist(), "poses": o.poses.tolist(),
+        "observed": [{"gait_ids": o.gait_ids.tolist(), "poses": _poses_json(o.poses),
                       "cycles_since_power_on": o.cycles_since_power_on}
                      for o in state.observed],
         "search": state.search,

@@ -50,12 +50,19 @@ class TestResult:
         return int(coverage_score(self.fitness, self.repeat_visits))
 
     def figures(self) -> dict:
-        return {
+        """The figures; with ``gaps`` (how many gait cycles' poses the observer could not see,
+        NaN in ``poses``) where there were any: the figures are then estimated from a path
+        filled in across the gaps (:func:`pac_host.coverage.gaps.fill_gaps`)."""
+        out = {
             "blocks_covered": self.blocks_covered,
             "blocks_covered_once": self.blocks_covered_once,
             "fitness": self.fitness,
             "repeat_visits": self.repeat_visits,
         }
+        gaps = 0 if self.poses is None else int((~np.isfinite(self.poses).all(axis=-1)).sum())
+        if gaps:
+            out["gaps"] = gaps
+        return out
 
 
 class Robot(Protocol):

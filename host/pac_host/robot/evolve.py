@@ -37,6 +37,7 @@ import numpy as np
 
 from pac_host import limits
 from pac_host.coverage import START_POSE, detect_blocks, format_turn_cycle
+from pac_host.coverage.gaps import fill_gaps
 from pac_host.errors import TOOLKIT_ERRORS, InputError, PacError, with_hint
 from pac_host.experiments.experiment import ExperimentConfig, initial_population
 from pac_host.files import append_text, cut_torn_line, read_jsonl, read_text, write_atomic
@@ -460,7 +461,8 @@ def _persist(d: EvolveDir, state: pal.PALState, rng: np.random.Generator, rec: d
     _write_results(d, state, model_name)
     best = timer.results[0] if timer.results else None
     if best is not None and best.poses is not None:
-        coverage_path(best.poses, detect_blocks(best.poses), d.path_png,
+        path = fill_gaps(best.poses)  # estimated across the gait cycles not seen, if any
+        coverage_path(path, detect_blocks(path), d.path_png,
                       path_title(rec, len(records)), best.figures())
     learning_progress(records, d.progress_png, "PAL on the robot", search)
 

@@ -8,6 +8,13 @@ from the observed path (:func:`pac_host.coverage.coverage_of_poses`) or from the
 count. Every observation is appended to the run's log before it is used, so a robot that stops
 answering mid-run leaves a log holding everything seen up to then.
 
+A gait cycle the observer could not see (a camera that lost its marker in that window) is a
+gap, a NaN pose, not the end of the test: the test's coverage figures are estimated from the
+path filled in across its gaps (:func:`pac_host.coverage.gaps.fill_gaps`; the punctuation's
+record says ``"gaps": N`` beside them), the model fit uses the steps seen end to end, and the
+observed-runs file holds those stretches (each a run of its own, ``part_of`` the test). The
+observer decides when too many are lost and stops the test.
+
 A test whose link broke down mid-way (the robot silent or reset, after the link's own retries
 and resynchronisations) is redone from its start, at most
 ``redos`` times: the robot is stopped and said HELLO to again (a fresh session), re-placed (the
@@ -30,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from pac_host.coverage import START_POSE, coverage_of_poses, expand
+from pac_host.coverage.gaps import fill_gaps, seen_stretches, unseen
 from pac_host.errors import PacError
 from pac_host.files import append_text
 from pac_host.learning.testing import TestResult
@@ -64,6 +72,18 @@ def observed_run(run_id: str, start: Sequence[float], gaits: Sequence[int],
             "gait_cycles": [int(g) for g in gaits],
             "poses": [[float(v) for v in p] for p in poses],
             "cycles_since_power_on": int(n0)}
+
+
+def observed_runs(run_id: str, start: Sequence[float], gaits: Sequence[int],
+                  poses: np.ndarray, n0: int) -> list[dict]:
+    """The observed-runs file's lines of one run: the run itself, or, where the observer has
+    gaps in it (NaN poses), each stretch seen end to end as a run of its own (``run_id`` and
+    ``-c`` its first gait cycle, starting at the pose seen there, ``part_of`` the run)."""
+    path = np.vstack([np.asarray(start, dtype=np.float64)[None], np.asarray(poses)])
+    if not unseen(path).any():
+        return [observed_run(run_id, start, gaits, poses, n0)]
+    return [{**observed_run(f"{run_id}-c{a}", path[a], gaits[a:b], path[a + 1:b + 1], n0 + a),
+             "part_of": run_id} for a, b in seen_stretches(path)]
 
 
 # progress(stage, done, total, detail): see the module docstring
@@ -182,8 +202,12 @@ class LinkedRobot:
             raise ObserverError(f"observer {self.observer.name}: {got} poses for run {run_id},"
                                 f" expected {self.budget}")
         if len(gaits):
-            self.runs.append(observed_run(run_id, start, gaits, poses, n0))
+            self.runs += observed_runs(run_id, start, gaits, poses, n0)
         path = np.vstack([np.asarray(start, dtype=np.float64)[None], poses])
-        cov = coverage_of_poses(path)
+        gaps = int(unseen(path).sum())
+        cov = coverage_of_poses(fill_gaps(path))  # estimated across the gaps, if any
+        if gaps:
+            self.log({"type": "gaps", "run_id": run_id, "gaps": gaps,
+                      "figures": "estimated from the path filled in across the gaps"})
         return TestResult(int(cov.blocks_covered), int(cov.blocks_covered_once),
                           int(cov.fitness), int(cov.repeat_visits), path)

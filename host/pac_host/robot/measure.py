@@ -26,7 +26,7 @@ from pac_host.errors import InputError, PacError
 from pac_host.model.kinematics import moves_between
 from pac_host.model.table import COMPONENTS, N_IDS, GaitTable
 from pac_host.robot.connect import Connection
-from pac_host.robot.linked import AppendLog, observed_run, run_seed
+from pac_host.robot.linked import AppendLog, observed_runs, run_seed
 from pac_host.robot.recovery import Recovery, with_redos
 
 MEASURE_START = (90.0, 90.0, 0.0)  # the middle of the area's first two rows, facing +y
@@ -160,11 +160,13 @@ def measure_once(conn: Connection, cfg: MeasureConfig, gait: int, rep: int, log:
     start = np.asarray(seen if seen is not None else cfg.start, dtype=np.float64)
     if obs.poses is not None:
         if runs is not None:
-            runs(observed_run(run_id, start, [gait] * cfg.cycles, obs.poses, n0))
+            for doc in observed_runs(run_id, start, [gait] * cfg.cycles, obs.poses, n0):
+                runs(doc)
         path = np.vstack([start[None], obs.poses])
         if seen is None and cfg.cycles >= 2:
             path = path[1:]  # the hand-placed start is not observed: skip its move
-        return moves_between(path)
+        moves = moves_between(path)
+        return moves[np.isfinite(moves).all(axis=1)]  # a move next to a gap was not seen
     if obs.final_pose is None:
         raise InputError(f"observer {conn.observer.name} gives neither poses nor a final pose; "
                          "measure needs one of them")

@@ -19,7 +19,9 @@ The types every observer shares (:class:`Observer`, :class:`Observation`,
 importing this module; the tracker's lines are :mod:`pac_protocol.tracker_line`'s.
 
 A malformed line, a closed stream or silence raises :class:`ObserverError` naming the observer;
-nothing is ever filled in with zeros.
+nothing is ever filled in with zeros. A gait cycle a camera could not see (a tracker's ``LOST``
+line, the ``camera:`` observer's lost window) is a gap, a NaN pose, logged; only too many of
+them (:func:`pac_host.observation.too_many_lost`: more than a quarter of a test's) stop it.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from pac_host.observation import (  # noqa: F401  (the base types, importable fr
     Observer,
     ObserverError,
     Record,
+    too_many_lost,
 )
 from pac_protocol.messages import POWER_ON_MOD
 from pac_protocol.tracker_line import ASK_HEADER, parse_pose_line
@@ -155,11 +158,13 @@ class TrackerObserver:
         self._run_id = ""
         self._ask = False  # the stream answers requests (see ASK_HEADER)
         self._asked = 0
+        self._lost = 0
 
     def begin(self, run_id: str, power_on_before: int, record: Record) -> None:
         self._run_id, self._n0, self._record = run_id, power_on_before, record
         self._poses = []
         self._asked = 0
+        self._lost = 0
 
     def forget(self) -> None:
         """Drop the lines received so far: they belong to a test cut short, whose power-on
@@ -184,7 +189,12 @@ class TrackerObserver:
 
     def finish(self, cycles: int) -> Observation:
         self._take_until(cycles)
-        return Observation(poses=np.array(self._poses[:cycles], dtype=np.float64).reshape(-1, 3))
+        poses = np.array(self._poses[:cycles], dtype=np.float64).reshape(-1, 3)
+        lost = int((~np.isfinite(poses).all(axis=1)).sum())
+        if too_many_lost(lost, cycles, final=True):
+            raise ObserverError(f"observer {self.name}: lost observation of {lost} of {cycles} "
+                                f"gait cycles of run {self._run_id} (more than a quarter)")
+        return Observation(poses=poses)
 
     def _take_until(self, k: int) -> None:
         """Read lines until the pose after gait cycle ``k`` of this run is in hand."""
@@ -204,10 +214,18 @@ class TrackerObserver:
                 continue
             if not line.strip() or line.startswith("#"):
                 continue
-            if line.startswith("LOST"):
+            if line.startswith("LOST"):  # a gap: logged, a NaN pose
                 why = line.split(None, 2)[2] if len(line.split(None, 2)) == 3 else "lost"
-                raise ObserverError(f"observer {self.name}: lost observation of gait cycle "
-                                    f"{want} of run {self._run_id}: {why}")
+                self._record({"type": "lost", "run_id": self._run_id, "cycle": want,
+                              "why": why})
+                self._poses.append((np.nan, np.nan, np.nan))
+                self._lost += 1
+                if too_many_lost(self._lost, want):
+                    raise ObserverError(f"observer {self.name}: lost observation of "
+                                        f"{self._lost} of {want} gait cycles of run "
+                                        f"{self._run_id} (more than a quarter); the last, "
+                                        f"gait cycle {want}: {why}")
+                continue
             try:
                 p = parse_pose_line(line)
             except ValueError as e:
