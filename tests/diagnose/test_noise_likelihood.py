@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_host.diagnose.likelihood import whitener
+from pac_host.diagnose.likelihood import _substitute_numpy, whitener
 from pac_host.diagnose.noise import NoiseFloor, estimate_noise
 from pac_host.diagnose.residuals import batch_of, step_residuals
 from pac_host.diagnose.synth import world_runs
@@ -48,7 +48,7 @@ def test_whitener_inverts_the_dense_covariance(make_runs):
     b = batch_of(make_runs([], n_runs=2, n_cycles=12))
     nf = NoiseFloor(0.5, 1.0, "given", 0, True, 0.3, 0.6)
     wh = whitener(b, nf)
-    c = wh.steps
+    c = wh.n
     poses, o = b.poses[0, : c + 1], b.observed[0, :c]
     d = np.zeros((3 * c, 3 * (c + 1)))
     for i in range(c):
@@ -58,9 +58,11 @@ def test_whitener_inverts_the_dense_covariance(make_runs):
         d[3 * i + 1, 3 * i : 3 * i + 5] = [-co, s, -np.radians(o[i, 0]), co, -s]
         d[3 * i + 2, [3 * i + 2, 3 * i + 5]] = [-1, 1]
     var = np.tile([nf.pos_cm**2, nf.pos_cm**2, nf.heading_deg**2], c + 1)
-    sigma = (d * var) @ d.T + np.diag(np.tile([nf.step_cm**2, nf.step_cm**2,
+    # the step noise, and the second-order part: heading noise turning the position noise
+    turn = np.radians(nf.heading_deg) ** 2 * 2 * nf.pos_cm**2
+    sigma = (d * var) @ d.T + np.diag(np.tile([nf.step_cm**2 + turn, nf.step_cm**2 + turn,
                                                nf.step_deg**2], c))
-    w = wh.w[0, 0]
+    w = wh.w[0]
     np.testing.assert_allclose(w @ sigma @ w.T, np.eye(3 * c), atol=1e-9)
 
 
@@ -85,13 +87,14 @@ def test_noise_floor_separates_the_robots_own_step_noise(cycles):
 
 
 def test_block_substitution_whitens_as_the_dense_inverse(make_runs):
-    """The fast whitening (block forward substitution) gives the dense L^-1 r value for value,
-    across chunk borders, padding and leading dimensions."""
-    b = batch_of(make_runs([], n_runs=3, n_cycles=150))  # 150 steps: three chunks, padded
+    """The fast whitening (block forward substitution, compiled or numpy) gives the dense
+    L^-1 r value for value, along whole runs of 150 steps, and with leading dimensions."""
+    b = batch_of(make_runs([], n_runs=3, n_cycles=150))
     wh = whitener(b, NoiseFloor(0.5, 1.0, "given", 0, True, 0.3, 0.6))
-    assert wh.w.shape[1] > 1 and wh.w.shape[1] * wh.steps > b.ids.shape[1]
     res = np.random.default_rng(2).normal(size=(2, *b.ids.shape, 3))
     fast, dense = wh.whiten(res), wh.whiten(res, dense=True)
-    assert fast.shape == dense.shape == (2, 3, wh.w.shape[1] * wh.w.shape[2])
+    assert fast.shape == dense.shape == (2, 3, 3 * 150)
     np.testing.assert_allclose(fast, dense, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(wh.whiten(res[0]), dense[0], rtol=1e-10, atol=1e-10)
+    loop = _substitute_numpy(wh.linv, wh.sub, res).reshape(dense.shape)
+    np.testing.assert_allclose(loop, dense, rtol=1e-10, atol=1e-10)

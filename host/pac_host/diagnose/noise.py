@@ -21,6 +21,16 @@ variances (``tr(C Sigma)`` and ``tr(C U C Sigma)``, C the centring matrix, U the
 over all segments and solved as a 2 x 2 system; a variance that comes out negative is set to 0
 and the other refitted. Heading first, then position (whose white part needs sigma_h).
 
+:func:`estimate_noise` then maximises the restricted likelihood of the segments (each one's
+mean unknown) from there: the DST-I basis diagonalises every ``T(rho)``, so the likelihood is a
+sum over the segments' sine coefficients, and it uses every lag where the moments use two. The
+step noise shows at long lags (over about 2 sigma^2 / q^2 steps it outweighs the tracker's):
+with 1 cm / 2 deg of tracker noise the moments lost a step noise of 0.3 cm / 0.6 deg, and the
+runs' random walk then looked like structure. Each run's first step is left out there, and its
+start pose's noise is estimated apart (:func:`_start_noise`): none when the robot was put
+down on a given start pose, the tracker's when the tracker saw it. The second-order white
+part of F and T (:mod:`.likelihood`) is in the model, so the step noise is the robot's own.
+
 With fewer than :data:`MIN_REPEATS` usable steps the estimate is flagged unreliable; with no
 segments at all it falls back on the rms of the model's one-step residuals (an upper bound).
 """
@@ -40,6 +50,7 @@ from pac_host.model.step_noise import StepNoise
 MIN_REPEATS = 40
 FLOOR = 1e-3  # smallest sigma used, so noise-free synthetic data still whitens
 STEP_Z = 1.0  # jackknife standard errors a step-noise variance must clear to be kept
+START_Z = 3.0  # standard errors the start pose's noise must be below the tracker's to count
 TO_RAD2 = (np.pi / 180.0) ** 2
 
 
@@ -52,11 +63,22 @@ class NoiseFloor:
     reliable: bool
     step_cm: float = 0.0  # the robot's own step-to-step variability of F and T
     step_deg: float = 0.0  # ... and of dH
+    start_cm: float | None = None  # noise of each run's start pose on x and y, and on h:
+    start_deg: float | None = None  # 0 for a given start, None for the tracker's (observed)
+
+    def start_var(self) -> np.ndarray:
+        """The start pose's noise variances (x, y, h): :attr:`start_cm` and
+        :attr:`start_deg`, the tracker's where None."""
+        p = self.pos_cm if self.start_cm is None else self.start_cm
+        h = self.heading_deg if self.start_deg is None else self.start_deg
+        return np.array([p**2, p**2, h**2])
 
     def to_json(self) -> dict:
-        return {"pos_cm": round(self.pos_cm, 4), "heading_deg": round(self.heading_deg, 4),
-                "step_cm": round(self.step_cm, 4), "step_deg": round(self.step_deg, 4),
-                "method": self.method, "n_used": self.n_used, "reliable": self.reliable}
+        out = {"pos_cm": round(self.pos_cm, 4), "heading_deg": round(self.heading_deg, 4),
+               "step_cm": round(self.step_cm, 4), "step_deg": round(self.step_deg, 4),
+               "method": self.method, "n_used": self.n_used, "reliable": self.reliable}
+        sv = np.sqrt(self.start_var())
+        return {**out, "start_cm": round(float(sv[0]), 4), "start_deg": round(float(sv[2]), 4)}
 
 
 def segments(batch: Batch, min_len: int = 3) -> list[tuple[int, int, int]]:
@@ -154,28 +176,224 @@ def _solve_fixed(b: np.ndarray, a: np.ndarray, with_step: bool) -> tuple[float, 
     return max(float(a[:, 0] @ b / (a[:, 0] @ a[:, 0])), 0.0), 0.0
 
 
+@lru_cache(maxsize=512)
+def _dst(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The orthonormal DST-I basis V (n, n), which diagonalises every ``T(rho)`` (eigenvalues
+    ``2 - 2 rho cos_k``), the cosines cos_k (n,) and the coefficients of the constant, V^T 1."""
+    k = np.arange(1, n + 1)
+    v = np.sqrt(2.0 / (n + 1)) * np.sin(np.pi * np.outer(k, k) / (n + 1))
+    return v, np.cos(np.pi * k / (n + 1)), v.sum(axis=0)
+
+
+@dataclass(frozen=True)
+class _Spectra:
+    """S segments in the DST basis, padded to the longest (L): coefficients z (S, L, 3) of F,
+    T and dH, the eigenvalues of T(rho) (S, L) (rho = cos dH) and of T(1) (S, L), the
+    constant's coefficients a (S, L), which entries are real (S, L) and the heading coupling
+    of the white part of F and T (S, 2): mean T^2 and F^2 in rad^2 per deg^2."""
+
+    z: np.ndarray
+    lam_p: np.ndarray
+    lam_h: np.ndarray
+    a: np.ndarray
+    real: np.ndarray
+    couple: np.ndarray
+
+
+def _spectra(batch: Batch, segs: list) -> _Spectra | None:
+    if not segs:
+        return None
+    obs = batch.observed
+    k, top = len(segs), max(n for _, _, n in segs)
+    z, a = np.zeros((k, top, 3)), np.zeros((k, top))
+    lam_p, lam_h = np.ones((k, top)), np.ones((k, top))
+    real = np.zeros((k, top), dtype=bool)
+    couple = np.zeros((k, 2))
+    for j, (r, i0, n) in enumerate(segs):
+        v, cosk, a[j, :n] = _dst(n)
+        x = obs[r, i0 : i0 + n]
+        z[j, :n] = v.T @ x
+        lam_p[j, :n] = 2.0 - 2.0 * np.cos(np.radians(x[:, 2].mean())) * cosk
+        lam_h[j, :n] = 2.0 - 2.0 * cosk
+        real[j, :n] = True
+        couple[j] = (x[:, 1] ** 2).mean() * TO_RAD2, (x[:, 0] ** 2).mean() * TO_RAD2
+    return _Spectra(z, lam_p, lam_h, a, real, couple)
+
+
+def _reml_terms(sp: _Spectra, comp: int, tracker: float, step: float, white: float,
+                info: bool = False) -> tuple[float, np.ndarray]:
+    """Restricted negative log-likelihood of one component of the segments (their means
+    unknown) and its gradient (2,) in (tracker, step) variance, or with ``info`` their Fisher
+    information (2, 2); ``white``: the tracker's heading variance, for F and T (its part in
+    their white noise)."""
+    # F and T: the heading noise turns the position noise too, a white 2 var_p var_h rad^2
+    lam = sp.lam_h if comp == 2 else sp.lam_p + 2.0 * white * TO_RAD2
+    extra = white * sp.couple[:, comp, None] if comp < 2 else 0.0
+    z, a2 = sp.z[..., comp], sp.a**2
+    d = np.where(sp.real, tracker * lam + step + extra, 1.0)  # the covariance's eigenvalues
+    ia, iz = (a2 / d).sum(axis=1), (sp.a * z / d).sum(axis=1)
+    grads = (np.where(sp.real, lam, 0.0), sp.real.astype(np.float64))
+    if info:
+        out = np.empty((2, 2))
+        for i in range(2):
+            for j in range(2):
+                gi, gj = grads[i], grads[j]
+                out[i, j] = 0.5 * float(((gi * gj / d**2).sum(axis=1)
+                                         - 2.0 / ia * (a2 * gi * gj / d**3).sum(axis=1)
+                                         + (a2 * gi / d**2).sum(axis=1)
+                                         * (a2 * gj / d**2).sum(axis=1) / ia**2).sum())
+        return 0.0, out
+    nll = 0.5 * float(np.log(d).sum() + np.log(ia).sum()
+                      + ((z**2 / d).sum(axis=1) - iz**2 / ia).sum())
+    grad = np.empty(2)
+    for i, g in enumerate(grads):
+        ga = (a2 * g / d**2).sum(axis=1)
+        grad[i] = 0.5 * float((g / d).sum() - (ga / ia).sum()
+                              - (z**2 * g / d**2).sum()
+                              + (2 * iz * (sp.a * z * g / d**2).sum(axis=1) / ia).sum()
+                              - (iz**2 * ga / ia**2).sum())
+    return nll, grad
+
+
+def _reml(sp: _Spectra, comp: tuple[int, ...], start: tuple[float, float],
+          white: float = 0.0, with_step: bool = True) -> tuple[float, float, float]:
+    """(tracker, step variance, standard error of the step variance) maximising the restricted
+    likelihood of components ``comp`` over all segments, the tracker variance >= FLOOR^2 and
+    the step variance >= 0 (held at 0 when not ``with_step``): Fisher scoring, halving steps
+    that do not lower the objective, the step variance fixed at its bound while the gradient
+    pushes it there."""
+
+    def terms(x: np.ndarray, info: bool = False):
+        parts = [_reml_terms(sp, c, x[0], x[1], white, info) for c in comp]
+        return sum(t[0] for t in parts), sum(t[1] for t in parts)
+
+    lo = FLOOR**2
+    x = np.array([max(start[0], lo), max(start[1], 0.0) if with_step else 0.0])
+    f, g = terms(x)
+    for _ in range(100):
+        fisher = terms(x, info=True)[1]
+        free = [0, 1] if with_step and not (x[1] <= 0.0 and g[1] > 0.0) else [0]
+        step = np.zeros(2)
+        try:
+            step[free] = -np.linalg.solve(fisher[np.ix_(free, free)], g[free])
+        except np.linalg.LinAlgError:
+            break
+        t = 1.0
+        while t > 1e-6:
+            xn = np.maximum(x + t * step, [lo, 0.0])
+            fn, gn = terms(xn)
+            if fn <= f + 1e-12 * abs(f):
+                break
+            t /= 2.0
+        else:
+            break
+        done = np.all(np.abs(xn - x) <= 1e-8 * (np.abs(x) + x.sum()))
+        x, f, g = xn, fn, gn
+        if done:
+            break
+    info = terms(x, info=True)[1]
+    try:
+        se = float(np.sqrt(max(np.linalg.inv(info)[1, 1], 0.0)))
+    except np.linalg.LinAlgError:
+        se = float("inf")
+    return float(x[0]), float(x[1]), se
+
+
+def _start_noise(batch: Batch, var_h: float, qh: float, var_p: float, qp: float
+                 ) -> float | None:
+    """How noisy each run's start pose is, as a share of the tracker's variance: about 0 for
+    a robot put down exactly on a given start pose, 1 for a start the tracker observed; None
+    when no run's first gait cycle repeats.
+
+    Within a run's first stretch of one gait cycle the moves are equal, so the poses after
+    the start lie on a line (a circle's arc, turned to the frame of each move) and point back
+    to the start pose: the contrast of the stretch's moves that is blind to their common value
+    and carries the start pose's noise with weight one, with the least variance under the
+    floor (generalised least squares), has a variance known but for the start pose's part. The
+    share is the weighted least-squares fit of the squared contrasts over the runs and
+    components. A share below 1 is taken only when it is :data:`START_Z` standard errors
+    below it (else 1, observed): an observed start taken as exact pins the whole run to a
+    wrong pose (a drift or a sag to the selection, 3 in 100 effect-free structure fits of 6
+    runs), a given start taken as observed only leaves one pose free."""
+    d2, base, coef = [], [], []
+    obs = batch.observed
+    turn = 2.0 * var_p * var_h * TO_RAD2  # the second-order white part of F and T
+    for r, n in enumerate(batch.lengths):
+        ids = batch.ids[r, :n]
+        length = int(np.argmax(ids != ids[0])) if (ids != ids[0]).any() else int(n)
+        if length < 2:
+            continue
+        x = obs[r, :length]
+        rho = float(np.cos(np.radians(x[:, 2].mean())))
+        ones, first = np.ones(length), np.eye(length)[0]
+        for c in range(3):
+            if c == 2:
+                var, white, start = var_h, qh, var_h
+            else:  # F carries T's heading coupling, T carries F's
+                other = x[:, 1 - c] ** 2 * TO_RAD2
+                var, white = var_p, qp + turn + var_h * float(other.mean())
+                start = var_p + var_h * float(other[0])
+            off = -(rho if c < 2 else 1.0) * var
+            cov = (np.diag(np.full(length, 2 * var + white)) + np.diag(np.full(length - 1, off), 1)
+                   + np.diag(np.full(length - 1, off), -1))
+            cov[0, 0] -= start  # the floor without the start pose's noise
+            g = np.linalg.solve(cov, np.stack([ones, first], axis=1))
+            m = np.linalg.inv(np.stack([ones, first], axis=1).T @ g)
+            a = g @ m[:, 1]  # blind to the common move, weight one on the start pose
+            d2.append(float(a @ x[:, c]) ** 2)
+            base.append(float(m[1, 1]))
+            coef.append(start)
+    if not d2:
+        return None
+    d2, base, coef = np.array(d2), np.array(base), np.array(coef)
+    wt = 1.0 / (base + 0.5 * coef) ** 2  # 1 / var(d^2), up to a factor, halfway
+    share = float((wt * (d2 - base) * coef).sum() / (wt * coef**2).sum())
+    # its standard error were the start observed (var d^2 = 2 E[d^2]^2, E[d^2] = base + coef)
+    se = float(np.sqrt((wt**2 * coef**2 * 2 * (base + coef) ** 2).sum()) / (wt * coef**2).sum())
+    if share < 1.0 and 1.0 - share < START_Z * se:
+        return 1.0  # not clearly less noisy than the tracker: observed
+    return max(share, 0.0)
+
+
 def estimate_noise(batch: Batch, residuals: np.ndarray | None = None) -> NoiseFloor:
     """Estimate the noise floor from repeated identical steps of the runs in ``batch``.
 
-    A step-noise variance is kept only when it exceeds :data:`STEP_Z` jackknife standard
-    errors (segments in up to 20 groups): telling two noise kinds apart costs precision, and
-    a step noise that is an artefact of few data would mask slow effects. ``residuals``
-    (R, N, 3), the model's one-step residuals, are only used by the fallback.
+    The moments start the restricted likelihood (module docstring), which gives the floor. A
+    step-noise variance is kept only when it exceeds :data:`STEP_Z` standard errors (from the
+    likelihood's Fisher information; jackknife over segments in up to 20 groups when no
+    segment is long enough for it): telling two noise kinds apart costs precision, and a step
+    noise that is an artefact of few data would mask slow effects. The start pose's noise:
+    :func:`_start_noise`. ``residuals`` (R, N, 3), the model's one-step residuals, are only
+    used by the fallback.
     """
     segs = segments(batch)
     n_used = sum(n for _, _, n in segs)
     if segs:
         m = _moments(batch, segs)
         (var_h, qh, var_p, qp), se = _fit_with_errors(m)
-        if qh <= STEP_Z * se[1] or qp <= STEP_Z * se[3]:
+        # the restricted likelihood, each run's first step left out (its start pose may be
+        # exact): every lag, where the moments use two
+        spectra = _spectra(batch, [(r, i0 + (i0 == 0), n - (i0 == 0)) for r, i0, n in segs
+                                   if n - (i0 == 0) >= 3])
+        if spectra is not None:
+            var_h, qh, se_h = _reml(spectra, (2,), (var_h, qh))
+            if qh <= STEP_Z * se_h:
+                var_h, qh, _ = _reml(spectra, (2,), (var_h, 0.0), with_step=False)
+            var_p, qp, se_p = _reml(spectra, (0, 1), (var_p, qp), var_h)
+            if qp <= STEP_Z * se_p:
+                var_p, qp, _ = _reml(spectra, (0, 1), (var_p, 0.0), var_h, with_step=False)
+        elif qh <= STEP_Z * se[1] or qp <= STEP_Z * se[3]:
             # refit with the step noise that is not clear set to zero
             keep_h, keep_p = qh > STEP_Z * se[1], qp > STEP_Z * se[3]
             var_h, qh = _solve_fixed(m[0].sum(axis=0), m[1].sum(axis=0), keep_h)
             s = m[2].sum(axis=0) - var_h * m[4].sum(axis=0)
             var_p, qp = _solve_fixed(s, m[3].sum(axis=0), keep_p)
-        return NoiseFloor(max(np.sqrt(var_p), FLOOR), max(np.sqrt(var_h), FLOOR),
-                          "repeated_identical_steps", n_used, n_used >= MIN_REPEATS,
-                          float(np.sqrt(qp)), float(np.sqrt(qh)))
+        pos, head = max(np.sqrt(var_p), FLOOR), max(np.sqrt(var_h), FLOOR)
+        share = _start_noise(batch, var_h, qh, var_p, qp)
+        start = (None, None) if share is None else (pos * np.sqrt(share),
+                                                    head * np.sqrt(share))
+        return NoiseFloor(pos, head, "repeated_identical_steps", n_used, n_used >= MIN_REPEATS,
+                          float(np.sqrt(qp)), float(np.sqrt(qh)), *start)
     if residuals is None:
         raise ValueError("no repeated steps: residuals are needed for the fallback estimate")
     flat = residuals[batch.mask]

@@ -17,7 +17,9 @@
    and the diagnosis is marked not informative: the runs cannot tell the two apart.
 7. Beyond the library: the residual's shape (:mod:`.shape`) on all runs; a shape noise cannot
    make means ``partly_unexplained``, and then candidate terms outside the library are fitted
-   and judged on the held-out runs (:mod:`.propose`), naming the kind of what is missing.
+   and judged on the held-out runs (:mod:`.propose`), naming the kind of what is missing, or,
+   when several fit about equally or none explains most of it, saying so with their evidence
+   and the run that would separate them (:mod:`.rank`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,15 @@ from pac_host.diagnose.fitted_rows import fitted_rows_problems
 from pac_host.diagnose.likelihood import whitener
 from pac_host.diagnose.noise import NoiseFloor, estimate_noise
 from pac_host.diagnose.propose import family_tests, propose
+from pac_host.diagnose.rank import (
+    MIN_SHARE,
+    Candidate,
+    family_predictor,
+    mixture_predictor,
+    rank,
+    separating_run,
+    where_summary,
+)
 from pac_host.diagnose.residuals import (
     Batch,
     batch_of,
@@ -290,40 +301,78 @@ def beyond_library(table: GaitTable, fit_b: Batch, hold_b: Batch, all_b: Batch,
         sel.verdict = "partly_unexplained"
     out: dict = {"shape_tests": [t.to_json() for t in tests],
                  "flags": [t.name for t in flags], "kind": None, "description": None,
-                 "proposal": None, "intermittent": None, "families": []}
+                 "proposal": None, "intermittent": None, "families": [], "kind_verdict": None,
+                 "alike": [], "ranking": [], "separating_run": None, "where": None}
     if sel.verdict != "partly_unexplained":
         return out
     props, mix = propose(fit_p, hold_p, sel.selected, _chronology(fit_b, order),
                          _chronology(hold_b, order), noise)
     out["families"] = [{"family": q.family, "holdout_loglik_gain": round(q.holdout_gain / 2, 3),
                         "p_value": q.p_value, "shrink": round(q.shrink, 4)} for q in props]
+    mix_runs = None if mix is None else mix.pop("run_gains")
+    mix_end = None if mix is None else mix.pop("run_end_cm")
     out["intermittent"] = mix
-    valid = [q for q in props if q.p_value < ALPHA and q.holdout_gain > 0]
+    out["where"] = where_summary(all_b, step_residuals(table.rows, all_b, tuple(table.effects)
+                                                      + tuple(sel.selected)), noise)
+    cands = [Candidate(q.family, q.kind, q.description, q.run_gains / 2.0, q.shrink,
+                       family_predictor(q, hold_p), q.to_json(), q.run_end_cm)
+             for q in props if q.p_value < ALPHA and q.holdout_gain > 0]
     mix_ok = (mix is not None and mix["holdout_loglik_gain"] > MIX_MIN_GAIN
               and 0.03 <= mix["share"] <= 0.6
               and abs(mix["scale_major"] - mix["scale_minor"]) > 0.3)
-    best = valid[0] if valid else None
-    if mix_ok and (best is None or mix["holdout_loglik_gain"] > best.holdout_gain):
-        out["kind"], out["description"] = "intermittent", mix["description"]
-        out["proposal"] = {"family": "intermittent", "kind": "intermittent",
-                           "description": mix["description"],
-                           "terms": [{"term": "the move scaled by a two-component mixture",
-                                      "share": round(mix["share"], 4),
-                                      "scales": [round(mix["scale_major"], 4),
-                                                 round(mix["scale_minor"], 4)]}],
-                           "holdout": {"loglik_gain": round(mix["holdout_loglik_gain"], 3),
-                                       **mix["holdout"]}}
-        best = None
-    elif best is not None:
-        out["kind"], out["description"] = best.kind, best.description
-    elif flags:
-        out["kind"], out["description"] = flags[0].kind, flags[0].description
+    if mix_ok:
+        cands.append(Candidate(
+            "intermittent", "intermittent", mix["description"], np.asarray(mix_runs, float),
+            mix["holdout"]["shrink"], mixture_predictor(mix, hold_p),
+            {"family": "intermittent", "kind": "intermittent",
+             "description": mix["description"],
+             "terms": [{"term": "the move scaled by a two-component mixture",
+                        "share": round(mix["share"], 4),
+                        "scales": [round(mix["scale_major"], 4), round(mix["scale_minor"], 4)]}],
+             "holdout": {"loglik_gain": round(mix["holdout_loglik_gain"], 3),
+                         **mix["holdout"]}}, mix_end))
+    w0 = hold_p.whitened(sel.selected)
+    excess = (float(w0 @ w0) - hold_p.n_obs) / 2.0  # held-out nats above the noise floor
+    out["holdout_excess_loglik"] = round(excess, 2)
+    order_c, ranking, n_alike = rank(cands, excess)
+    out["ranking"] = ranking
+    if order_c:
+        top = order_c[0]
+        out["proposal"] = top.proposal
+        acts = top.proposal.get("acts_most_on")
+        if acts:  # the quantity the leading explanation changes most, against the noise
+            out["where"]["component"] = acts
+        share = ranking[0]["share_of_excess"]
+        alike = [top] + [c for c, r in zip(order_c[1:], ranking[1:], strict=True)
+                         if r["alike_leader"]]
+        out["alike"] = [c.kind for c in alike]
+        if n_alike > 1:
+            out["kind"] = out["kind_verdict"] = "ambiguous"
+            out["description"] = ("one of these fits about as well as the others on the "
+                                  "held-out runs: " + "; or ".join(c.description for c in alike))
+        elif share is not None and share < MIN_SHARE:
+            out["kind"] = out["kind_verdict"] = "uncertain"
+            out["description"] = (f"no candidate explains most of the gap: the best, "
+                                  f"{top.description}, takes {share:.0%} of what the held-out "
+                                  "runs leave above the noise floor; the cause may be of a kind "
+                                  "not among the candidates (see where)")
+        else:
+            out["kind"], out["description"] = top.kind, top.description
+            out["kind_verdict"] = "named"
+        if n_alike > 1 or out["kind_verdict"] == "uncertain":
+            out["separating_run"] = separating_run(alike if n_alike > 1 else order_c[:2],
+                                                   hold_b, noise)
+    elif flags:  # the shape is not noise's, but no term holds on the held-out runs
+        out["kind"] = out["kind_verdict"] = "uncertain"
+        out["alike"] = list(dict.fromkeys(f.kind for f in flags))
+        out["description"] = ("the residual's shape is not noise's ("
+                              + "; ".join(f.description for f in flags[:3])
+                              + "), but no candidate term holds on the held-out runs")
     else:
         out["kind"] = "library_like"
+        out["kind_verdict"] = "library_like"
         out["description"] = ("structure of the library's kind remains (by gait cycle, "
                               "gait change, time or world drift); see where_remaining")
-    if best is not None:
-        out["proposal"] = best.to_json()
     return out
 
 

@@ -116,14 +116,15 @@ def summary(d: Diagnosis) -> list[str]:
         u = d.unexplained or {}
         if u.get("flags"):
             lines.append("the residual's shape is not noise's: " + ", ".join(u["flags"]))
-        if u.get("description"):
-            lines.append(f"what is missing ({u['kind']}): {u['description']}")
+        lines += _where_lines(u.get("where"))
+        lines += _kind_lines(u)
         prop = u.get("proposal")
         if prop:
             ph = prop["holdout"]
             with_lib = prop.get("with_library_effects")
             lines.append(
-                f"proposed term ({prop['family']}, outside the library"
+                ("leading " if u.get("kind_verdict") != "named" else "")
+                + f"proposed term ({prop['family']}, outside the library"
                 + (f", with {', '.join(with_lib)}" if with_lib else "") + "): "
                 + "; ".join(f"{t['term']} x {t['coefficient']:.4g}" if "coefficient" in t
                             else t["term"] for t in prop["terms"][:4])
@@ -142,6 +143,83 @@ def summary(d: Diagnosis) -> list[str]:
         f"{100 * h['shrink_ci'][1]:.0f}%)")
     lines += [f"note: {n}" for n in d.notes]
     return lines
+
+
+def _where_lines(w: dict | None) -> list[str]:
+    """Where the residual the library leaves lies, with the numbers to judge it."""
+    if not w:
+        return []
+    ratio = w["rms_over_noise"]
+    out = [f"where the gap lies (model and selected effects, all runs): mostly {w['component']};"
+           " residual rms against the noise of one move: "
+           + ", ".join(f"{c} {ratio[c]:.2f}x" for c in COMPONENTS)]
+    rows = list(w.get("contexts") or [])
+    ch = w.get("change_vs_repeat")
+    if ch and all(r["context"] != ch["context"] for r in rows):
+        rows.append(ch)
+    out += [f"  {r['text']}" for r in rows]
+    return out
+
+
+def _kind_lines(u: dict) -> list[str]:
+    """The kind of what is missing: named, or the candidates that fit about equally with
+    their evidence and the run that would separate them, or uncertain."""
+    verdict = u.get("kind_verdict")
+    ranking = u.get("ranking") or []
+    if verdict not in ("ambiguous", "uncertain", "named") or not ranking:
+        return [f"what is missing ({u['kind']}): {u['description']}"] if u.get("description") \
+            else []
+    top = ranking[0]
+    if verdict == "named":
+        out = [f"what is missing ({u['kind']}): {u['description']}", "  " + _evidence(top)]
+        if len(ranking) > 1:
+            r = ranking[1]
+            lo, hi = r["behind_leader_interval_95"]
+            out.append(f"  next best {r['kind']}: behind by {r['behind_leader']:.1f} "
+                       f"[{lo:.1f}, {hi:.1f}] in log-likelihood" + _rollout_lead(r)
+                       + " (paired over held-out runs)")
+        return out
+    shown = [r for r in ranking if r["rank"] == 1 or r.get("alike_leader")]
+    if verdict == "ambiguous":
+        out = ["kind of what is missing: ambiguous, one of these fits about as well as the "
+               f"others on the held-out runs ({', '.join(r['kind'] for r in shown)}):"]
+    else:
+        shown = ranking[:3]
+        out = [f"kind of what is missing: uncertain; {u['description']}"]
+    for r in shown:
+        out.append(f"  {r['rank']}. {r['kind']}: {r['description']}")
+        out.append("     " + _evidence(r))
+    sep = u.get("separating_run")
+    if sep:
+        out.append(f"a run that would tell them apart: {sep['run']} (their predictions differ "
+                   f"by about {sep['separation_sigma']:.0f} noise standard deviations)")
+        out += [f"  {p['kind']} predicts a mean move of F {p['mean_move'][0]:+.2f} cm, "
+                f"T {p['mean_move'][1]:+.2f} cm, dH {p['mean_move'][2]:+.2f} deg per cycle"
+                for p in sep["predictions"]]
+    return out
+
+
+def _rollout_lead(r: dict) -> str:
+    if r.get("rollout_behind_leader_cm") is None:
+        return ""
+    lo, hi = r["rollout_behind_leader_interval_95"]
+    return (f", rollout end error {r['rollout_behind_leader_cm']:+.1f} cm [{lo:+.1f}, {hi:+.1f}] "
+            "against the first")
+
+
+def _evidence(r: dict) -> str:
+    lo, hi = r["gain_interval_95"]
+    text = (f"held-out log-likelihood gain {r['holdout_loglik_gain']:.1f} [{lo:.1f}, {hi:.1f}] "
+            "(95%, over held-out runs)")
+    if r.get("behind_leader") is not None:
+        blo, bhi = r["behind_leader_interval_95"]
+        text += f", behind the first by {r['behind_leader']:.1f} [{blo:.1f}, {bhi:.1f}]"
+    text += _rollout_lead(r)
+    if r.get("share_of_excess") is not None:
+        text += f", {r['share_of_excess']:.0%} of the held-out excess over the noise"
+    if r.get("shrink") is not None:
+        text += f", rollout shrink {r['shrink']:.2f}"
+    return text
 
 
 def write_plots(d: Diagnosis, out_dir: str | Path) -> list[Path]:

@@ -8,6 +8,7 @@ short CGA run on the measured table and the paper's PAL test perturbations of it
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -15,7 +16,7 @@ import numpy as np
 from pac_host.coverage import START_POSE, expand
 from pac_host.diagnose.runs import Run
 from pac_host.model.effects import Effect, step_moves
-from pac_host.model.kinematics import integrate
+from pac_host.model.kinematics import integrate, to_body_frame
 from pac_host.model.table import measured_table
 from pac_host.search import cga
 
@@ -242,6 +243,112 @@ def _warmup(rng, level):
     return perturb, {"cold_loss": a, "tau_cycles": tau}
 
 
+def _turn_dir(ids: np.ndarray) -> np.ndarray:
+    """+1 on a right turn, -1 on a left turn, 0 on a straight gait cycle (strength 15)."""
+    return np.where((ids & 15) == 15, 0, np.where(ids >> 4 == 0, 1, -1))
+
+
+def _weak_leg(rng, level):
+    """A weak leg: on turns to one side only, the stride is shorter (and the turn a little
+    weaker)."""
+    d = _uniform(rng, [(0.08, 0.14), (0.14, 0.22), (0.22, 0.35)], level)
+    on = int(rng.integers(0, 2))  # 0: right turns, 1: left turns
+
+    def perturb(i, body, pose, n0, ids, r):
+        g = ids[:, i]
+        hit = ((g >> 4) == on) & ((g & 15) < 15)
+        return body * np.where(hit[:, None], [1.0 - d, 1.0, 1.0 - d / 2], 1.0)
+    return perturb, {"stride_loss": d, "side": ("right", "left")[on]}
+
+
+def _backlash(rng, level):
+    """Backlash: the first gait cycle after the turn direction reverses loses a few degrees of
+    its turn (and a little of its stride) while the play is taken up."""
+    b = _uniform(rng, [(1.5, 2.5), (2.5, 4.0), (4.0, 6.0)], level)
+
+    def perturb(i, body, pose, n0, ids, r):
+        if i == 0:
+            return body
+        cur, prev = _turn_dir(ids[:, i]), _turn_dir(ids[:, i - 1])
+        hit = (cur * prev) < 0
+        out = body.copy()
+        out[:, 2] -= np.where(hit, b * np.sign(body[:, 2]), 0.0)
+        out[:, 0] -= np.where(hit, 0.1 * b, 0.0)
+        return out
+    return perturb, {"deg_lost": b}
+
+
+def _sag_additive(rng, level):
+    """A battery sag that takes a fixed length off every stride (not a share of it), growing
+    with the time since power-on."""
+    c = _uniform(rng, [(0.3, 0.5), (0.5, 0.9), (0.9, 1.5)], level)  # cm per 100 cycles
+
+    def perturb(i, body, pose, n0, ids, r):
+        out = body.copy()
+        out[:, 0] -= c * (n0 + i) / 100.0
+        return out
+    return perturb, {"cm_per_100_cycles": c}
+
+
+def _slope_patch(rng, level):
+    """A ramp in one part of the floor: inside a band of x or y the robot drifts downhill."""
+    s = _uniform(rng, [(0.3, 0.5), (0.5, 0.8), (0.8, 1.3)], level)  # cm per gait cycle
+    theta = float(rng.uniform(0.0, 360.0))
+    axis = int(rng.integers(0, 2))
+    lo = float(rng.uniform(20.0, 100.0) if axis == 0 else rng.uniform(30.0, 150.0))
+    width = float(rng.uniform(60.0, 100.0))
+    dx, dy = s * np.sin(np.radians(theta)), s * np.cos(np.radians(theta))
+
+    def perturb(i, body, pose, n0, ids, r):
+        inside = (pose[:, axis] >= lo) & (pose[:, axis] < lo + width)
+        f, t = to_body_frame(dx, dy, pose[:, 2])
+        out = body.copy()
+        out[:, 0] += np.where(inside, f, 0.0)
+        out[:, 1] += np.where(inside, t, 0.0)
+        return out
+    return perturb, {"cm_per_cycle": s, "toward": theta, "axis": "xy"[axis],
+                     "band": [lo, lo + width]}
+
+
+def _tether(rng, level):
+    """A cable to a point on the floor: it pulls toward that point, more the farther the robot
+    is from it (a world-frame drift growing with distance)."""
+    k = _uniform(rng, [(0.15, 0.3), (0.3, 0.5), (0.5, 0.8)], level)  # cm per cycle per metre
+    ax, ay = float(rng.uniform(0.0, 150.0)), float(rng.uniform(0.0, 150.0))
+
+    def perturb(i, body, pose, n0, ids, r):
+        dx, dy = -k * (pose[:, 0] - ax) / 100.0, -k * (pose[:, 1] - ay) / 100.0
+        f, t = to_body_frame(dx, dy, pose[:, 2])
+        out = body.copy()
+        out[:, 0] += f
+        out[:, 1] += t
+        return out
+    return perturb, {"cm_per_cycle_per_m": k, "anchor": [ax, ay]}
+
+
+def _pause_warmup(rng, level):
+    """Motors that cool during the pause between runs: every run starts with shorter moves
+    that recover over its first cycles."""
+    a = _uniform(rng, [(0.15, 0.25), (0.25, 0.4), (0.4, 0.6)], level)
+    tau = float(rng.uniform(3.0, 10.0))
+
+    def perturb(i, body, pose, n0, ids, r):
+        return body * (1.0 - a * math.exp(-i / tau))
+    return perturb, {"cold_loss": a, "tau_cycles": tau}
+
+
+def _carpet(rng, level):
+    """A carpet's pile: strides are longer walking with the grain, shorter against it."""
+    a = _uniform(rng, [(0.04, 0.07), (0.07, 0.12), (0.12, 0.2)], level)
+    grain = float(rng.uniform(0.0, 360.0))
+
+    def perturb(i, body, pose, n0, ids, r):
+        out = body.copy()
+        out[:, 0] *= 1.0 + a * np.cos(np.radians(pose[:, 2] - grain))
+        return out
+    return perturb, {"stride_change": a, "grain": grain}
+
+
 OUTSIDE = {
     "stall": ("intermittent", _stall),
     "wobble": ("periodic", _wobble),
@@ -249,4 +356,11 @@ OUTSIDE = {
     "floor_patch": ("position", _floor_patch),
     "heading_pull": ("heading", _heading_pull),
     "warmup": ("time_since_power_on", _warmup),
+    "weak_leg": ("turn", _weak_leg),
+    "backlash": ("previous_gait_cycle", _backlash),
+    "sag_additive": ("time_since_power_on", _sag_additive),
+    "slope_patch": ("position", _slope_patch),
+    "tether": ("position", _tether),
+    "carpet": ("heading", _carpet),
+    "pause_warmup": ("time_in_run", _pause_warmup),
 }
