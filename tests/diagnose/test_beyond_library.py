@@ -62,8 +62,12 @@ def test_a_heading_pull_and_a_warm_up_are_described_in_numbers():
     d, truth = _outside("heading_pull", 1, 3)
     u = d.unexplained
     assert d.verdict == "partly_unexplained" and u["kind"] == "heading"
-    size = _number(u["description"], r"by up to \+?([\d.]+) deg")
-    at = _number(u["description"], r"most at heading (\d+) deg")
+    # described by its peak, either sign first ("by up to -1.0 deg ... most at heading 235
+    # deg (and +1.0 at 55)"): the heading of the positive peak
+    size = abs(_number(u["description"], r"by up to ([+-]?[\d.]+) deg"))
+    m = re.search(r"by up to \+?([\d.]+) deg per gait cycle, most at heading (\d+)",
+                  u["description"]) or re.search(r"and \+([\d.]+) at (\d+)", u["description"])
+    at = float(m.group(2))
     assert size == pytest.approx(truth["deg_per_cycle"], rel=0.25)
     # dH = c sin(toward - h) is largest 90 degrees before the heading it pulls towards
     assert (at - (truth["toward"] - 90) + 180) % 360 - 180 == pytest.approx(0, abs=20)

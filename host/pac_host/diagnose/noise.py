@@ -313,8 +313,8 @@ def _start_noise(batch: Batch, var_h: float, qh: float, var_p: float, qp: float
     share is the weighted least-squares fit of the squared contrasts over the runs and
     components. A share below 1 is taken only when it is :data:`START_Z` standard errors
     below it (else 1, observed): an observed start taken as exact pins the whole run to a
-    wrong pose (a drift or a sag to the selection, 3 in 100 effect-free structure fits of 6
-    runs), a given start taken as observed only leaves one pose free."""
+    wrong pose (a transition or a sag to the selection in 3 of 100 effect-free structure fits
+    of 6 runs), a given start taken as observed only leaves one pose free."""
     d2, base, coef = [], [], []
     obs = batch.observed
     turn = 2.0 * var_p * var_h * TO_RAD2  # the second-order white part of F and T
