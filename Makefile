@@ -7,14 +7,14 @@ OUT     ?= out
 TEST_JOBS ?= 2
 PYDIRS  := $(wildcard host protocol simulator tests bench)
 
-.PHONY: help venv test demo demo-evolve experiment bench bench-diagnose lint sim sim-firmware clean firmware
+.PHONY: help venv test test-all demo demo-evolve experiment bench bench-diagnose lint sim sim-firmware clean firmware
 
 help:
 	@echo "make demo    about 2 minutes on two cores: PAL over the serial link against the built-in emulated"
 	@echo "             robot, then a small experiment (the learnt model against the oracle); plots in out/"
 	@echo "make experiment  the paper's question, 30 seeds of full, partial and the oracle (--profile paper;"
 	@echo "             a few minutes; RESUME=1 continues it) in out/experiment"
-	@echo "make test    install into .venv and run the test suite"
+	@echo "make test    install into .venv and run the test suite (make test-all: and the slow end-to-end runs)"
 	@echo "make demo-evolve  PAL over the serial link against the built-in emulator, longer (a few minutes)"
 	@echo "make bench   run the benchmarks, writing bench/results/bench.json"
 	@echo "make bench-diagnose  blind benchmark of the gap diagnosis, bench/results/diagnose.json"
@@ -47,6 +47,12 @@ firmware: $(FW_IMAGE)
 # ephemeral tracker ports and tmp dirs, so none shares a resource with another; worksteal
 # keeps one process from idling while the other runs the slow tests at the end
 test: $(STAMP) firmware
+	$(BIN)/ruff check $(PYDIRS)
+	$(BIN)/python -m pytest -n $(TEST_JOBS) --dist worksteal -m "not slow"
+
+# and the long end-to-end runs (marked slow: evolve over the firmware, the camera rig over a
+# whole default run, link recovery at real speed), a few minutes more
+test-all: $(STAMP) firmware
 	$(BIN)/ruff check $(PYDIRS)
 	$(BIN)/python -m pytest -n $(TEST_JOBS) --dist worksteal
 

@@ -22,8 +22,9 @@ from pac_host.errors import TOOLKIT_ERRORS, exit_code, os_error_line
 COMMANDS: dict[str, tuple[str, str]] = {
     "camera": ("pac_host.cli.camera:camera",
                "An overhead camera with fiducial markers (docs/how-to/camera.md): sheets to print, "
-               "grab frames, calibrate, check, serve poses, render a virtual camera's frames; "
-               "`--observer camera:...` for evolve and measure."),
+               "plan the cameras of a long area, grab frames, calibrate, check, serve poses, "
+               "render a virtual camera's frames; `--observer camera:...` (several cameras "
+               "joined by +) for evolve and measure."),
     "diagnose": ("pac_host.cli.diagnose:diagnose_cmd",
                  "Diagnose the gap between a model and observed runs."),
     "evolve": ("pac_host.cli.evolve:evolve_cmd",
