@@ -10,7 +10,6 @@ import json
 import cv2
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 from pac_host.camera import quality
 from pac_host.camera.calibrate import Lens, calibrate_floor, calibrate_lens, load
@@ -18,21 +17,12 @@ from pac_host.camera.geometry import Camera
 from pac_host.camera.layout import Board
 from pac_host.camera.observer import CameraOptions, PoseFinder
 from pac_host.camera.render import Imaging, Renderer, board_poses, standard_camera
-from pac_host.cli.main import main
 from pac_host.errors import InputError
+from tests.camera.test_camera_cli import _invoke, _one_error_line
 
 STRONG = (-0.25, 0.06, 0.0, 0.0, 0.0)  # a strongly barrel-distorting lens
 
 
-def _invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
-
-
-def _one_error_line(res, code, text):
-    assert res.exit_code == code, res.output
-    lines = [ln for ln in res.output.splitlines() if ln.startswith("pac-host: error:")]
-    assert len(lines) == 1 and text in lines[0], res.output
-    assert "Traceback" not in res.output
 
 
 def _write_frames(folder, frames):
