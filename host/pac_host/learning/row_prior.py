@@ -39,7 +39,6 @@ _IDS = np.arange(N_IDS)
 _DS2 = (strength(_IDS)[:, None] - strength(_IDS)[None, :]).astype(np.float64) ** 2
 _SAME = side(_IDS)[:, None] == side(_IDS)[None, :]
 LENGTH = (0.5, 30.0)  # bounds of the length scale, in steps of turn strength
-_FD_STEP = 1e-5  # L-BFGS-B's finite-difference step in the log parameters (see _best)
 
 
 def kernel(a: float, b: float, length: float, rho: float) -> np.ndarray:
@@ -65,6 +64,25 @@ def log_evidence(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float)
     return 0.5 * float(z @ z) / sigma**4 - float(np.log(np.diag(C)).sum())
 
 
+def _evidence_grad(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float
+                   ) -> tuple[float, np.ndarray]:
+    """:func:`log_evidence` and its gradient W with respect to the prior covariance
+    (d log p = tr(W dK)): W = (K^-1 (S + m m') K^-1 - K^-1) / 2 for the posterior mean m and
+    covariance S, computed as (v v' - K^-1 S X'X / sigma^2) / 2 with v = K^-1 m, from the
+    Cholesky factors the evidence uses (no inverse of K is formed)."""
+    L, M = _whitened(K, gram, sigma)
+    C = np.linalg.cholesky(M)
+    z = np.linalg.solve(C, L.T @ xty)
+    value = 0.5 * float(z @ z) / sigma**4 - float(np.log(np.diag(C)).sum())
+    # (numpy's solve on the 32 x 32 factors: scipy.linalg's triangular solves cost far more
+    # in their checks and wrappers than in the arithmetic at this size)
+    u = np.linalg.solve(C.T, z) / sigma**2     # M^-1 L' X'r / sigma^2
+    v = np.linalg.solve(L.T, u)                # K^-1 m
+    ks = np.linalg.solve(L.T, np.linalg.solve(M, L.T))  # K^-1 S = L^-T M^-1 L'
+    W = np.outer(v, v) - ks @ gram / sigma**2
+    return value, 0.5 * (W + W.T) / 2.0
+
+
 def posterior(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float
               ) -> tuple[np.ndarray, np.ndarray]:
     """Posterior mean and covariance of the offsets under the prior ``K``."""
@@ -75,17 +93,17 @@ def posterior(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float
 
 
 def _best(objective, starts, bounds) -> tuple[np.ndarray, float]:
-    """The best of L-BFGS-B runs from ``starts``. ``objective`` must be small near its
-    minimum (measured from a reference, as the gain over the independent prior is): the
-    method stops on a change of ``f`` relative to ``|f|``, which on the raw evidence of near
-    noise-free steps (hundreds of millions of nats) is a nat or more, more than the gain it is
-    judging. Its finite-difference step, in the log parameters, stays well above the
-    evidence's rounding noise (about 1e-7 nats there), which the default step of 1e-8 does
-    not: the gradient was noise and where it stopped depended on the machine."""
+    """The best of L-BFGS-B runs from ``starts``; ``objective`` returns its value and gradient.
+    It must be small near its minimum (measured from a reference, as the gain over the
+    independent prior is): the method stops on a change of ``f`` relative to ``|f|``, which
+    on the raw evidence of near noise-free steps (hundreds of millions of nats) is a nat or
+    more, more than the gain it is judging. The gradient is exact (:func:`_evidence_grad`):
+    a finite-difference one cost five evidences a step, and below a step of 1e-5 it was the
+    evidence's rounding noise."""
     best_x, best_f = None, np.inf
     for x0 in starts:
         res = minimize(objective, np.asarray(x0, dtype=np.float64), method="L-BFGS-B",
-                       bounds=bounds, options={"eps": _FD_STEP})
+                       bounds=bounds, jac=True)
         if res.fun < best_f:
             best_x, best_f = res.x, float(res.fun)
     return best_x, best_f
@@ -121,7 +139,15 @@ def smooth_prior(gram: np.ndarray, xty: np.ndarray, sigma: float, scale: float,
 
     def loss(x):  # minus the smooth prior's gain over the fitted independent prior, in nats
         a, b, length = np.exp(x[:3])
-        return -log_evidence(kernel(a, b, length, x[3]), gram, xty, sigma) - f_iid
+        rho = float(x[3])
+        decay = np.exp(-_DS2 / (2.0 * length * length))
+        shared = decay * np.where(_SAME, 1.0, rho)
+        value, W = _evidence_grad(a * a * np.eye(N_IDS) + b * b * shared, gram, xty, sigma)
+        # dK over the log of a, b and the length scale, and over rho
+        grad = np.array([2.0 * a * a * np.trace(W), 2.0 * b * b * np.sum(W * shared),
+                         b * b * np.sum(W * shared * _DS2) / (length * length),
+                         b * b * np.sum(W * np.where(_SAME, 0.0, decay))])
+        return -value - f_iid, -grad
 
     bounds = [(lo_a, hi), (np.log(1e-3 * scale), hi), tuple(np.log(LENGTH)), (0.0, 1.0)]
     starts = [[ia, np.log(0.5 * scale), np.log(ell), rho] for ell in (2.0, 8.0)
