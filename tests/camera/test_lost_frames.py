@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from pac_host.camera.detect import detect, fit_square, make_detector
 from pac_host.camera.geometry import Camera
-from pac_host.camera.layout import AREA_X, AREA_Y, Layout, RobotMarker
+from pac_host.camera.layout import Layout, RobotMarker
 from pac_host.camera.observer import CameraObserver, CameraOptions, image_change, wrap180
 from pac_host.camera.render import (
     Imaging,
@@ -21,6 +21,7 @@ from pac_host.camera.render import (
     Renderer,
     light_field,
     line_kernel,
+    random_walk,
     standard_camera,
 )
 from pac_host.camera.sheets import MARKER_PX, floor_px_per_cm, suggest_marker_size
@@ -158,19 +159,6 @@ def test_small_blurred_markers_are_read_where_opencv_alone_loses_them(rig, webca
 # ---- a robot still walking, and lost windows -----------------------------------------------
 
 
-def _walk(n: int, rng: np.random.Generator) -> list[tuple[float, float, float]]:
-    x, y, h, out = 90.0, 150.0, float(rng.uniform(-180, 180)), []
-    for _ in range(n):
-        h += float(rng.uniform(-30, 30))
-        nx, ny = x + 10 * np.sin(np.radians(h)), y + 10 * np.cos(np.radians(h))
-        if not (AREA_X[0] + 8 <= nx <= AREA_X[1] - 8 and AREA_Y[0] + 8 <= ny <= AREA_Y[1] - 8):
-            h += 180.0
-            nx, ny = x + 10 * np.sin(np.radians(h)), y + 10 * np.cos(np.radians(h))
-        x, y = nx, ny
-        out.append((x, y, h))
-    return out
-
-
 def _observe(renderer, calib, path, walking=0.0, finish=True, **opts):
     log: list[dict] = []
     source = RenderSource(renderer, lambda k: path[0] if k is None else path[k - 1], 3,
@@ -187,7 +175,7 @@ def test_windows_at_3px_of_blur_with_the_suggested_marker_are_seen(rig, webcam):
     no pose at the first look (bench/bench_camera_degraded.py measures more), none is a gap
     after the retries, every pose within a centimetre."""
     renderer, big, _ = webcam
-    path = _walk(40, np.random.default_rng(6))
+    path = random_walk(40, np.random.default_rng(6))
     poses, log = _observe(renderer, _calib(rig, big), path, frames=3)
     again = [r for r in log if r["type"] == "pose" and r.get("looks", 1) > 1]
     assert len(again) <= 2 and not [r for r in log if r["type"] == "lost"]
@@ -201,7 +189,7 @@ def test_a_robot_still_walking_is_looked_at_again(rig, webcam):
     without retries each is a gap, with them the robot is seen standing."""
     renderer, big, _ = webcam
     calib = _calib(rig, big)
-    path = _walk(5, np.random.default_rng(7))
+    path = random_walk(5, np.random.default_rng(7))
     _, log = _observe(renderer, calib, path, walking=1.0, finish=False, frames=3, retries=0,
                       max_lost=0.99)
     lost = [r for r in log if r["type"] == "lost"]

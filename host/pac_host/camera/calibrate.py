@@ -1,8 +1,14 @@
 """Calibration: where the floor is in the image, where the camera is, and (optionally) its lens.
 
-- The floor: a homography from ideal (undistorted) pixels to floor cm, fitted to the corners of
-  at least four floor markers at known places (over one or more frames), with its reprojection
-  error in cm.
+- The floor: a homography from ideal (undistorted) pixels to floor cm, fitted by least squares
+  to the corners of at least four floor markers at known places (over one or more frames),
+  with its reprojection error in cm. The markers' common print scale is fitted with it (a
+  printer that shrinks the page moves every corner towards its marker's centre, not the
+  centres; :func:`fit_floor`). With a calibrated lens the homography is the one the camera's
+  pose implies (6 parameters: where the camera is and how it is turned, ``cv2.solvePnP`` on
+  all the corners), not a free one (8): it uses what the lens board measured, so the floor
+  markers' laying errors (a few mm by hand) are averaged over more markers per parameter, and
+  the floor and the parallax correction come from one camera.
 - The camera's position (for the parallax of a marker above the floor): from the same corners
   with the lens's intrinsics (``cv2.solvePnP``); without a calibrated lens, the focal length is
   estimated from the homography (needs a camera that looks somewhat obliquely), or the height
@@ -42,7 +48,7 @@ from pac_host.camera.layout import (
     Board,
     Layout,
     dictionary,
-    floor_corners,
+    square_corners,
 )
 from pac_host.errors import InputError
 from pac_host.files import write_atomic
@@ -377,7 +383,8 @@ def calibrate_lens(frames: Iterable[np.ndarray], board: Board = DEFAULT_BOARD,
         img.append(i.astype(np.float32))
     if len(obj) < min_images:
         raise InputError(f"the lens board was found in {len(obj)} image(s); need at least "
-                         f"{min_images} (print the board sheet flat, fill the view with it)")
+                         f"{min_images} (print the board sheet flat; hold it closer, "
+                         "spanning a third to a half of the image's width)")
     lens = fit_lens(obj, img, size)
     q.refuse(lens.checks(), "lens calibration refused")
     return lens
@@ -478,36 +485,80 @@ def focal_from_homography(H_floor_to_img: np.ndarray, principal: Sequence[float]
     return f if tilt >= MIN_TILT_DEG else None
 
 
+def fit_floor(ideal: np.ndarray, layout: Layout, ids: Sequence[int],
+              iterations: int = 3) -> tuple[np.ndarray | None, float, np.ndarray]:
+    """The free homography (ideal pixels -> floor cm) of the floor markers ``ids`` from their
+    corners ``ideal`` (4 per marker, in ``ids``' order), by least squares over all of them,
+    and the scale the markers were printed at, fitted with it: each marker's corners lie
+    around its centre at ``scale`` times its size in the layout (one scale for all: one
+    printer). Returns the homography (None: the corners give none), the scale, and the
+    corners' floor positions (cm) at that scale."""
+    known = layout.floor_by_id()
+    offsets = np.concatenate([square_corners(known[i].size) for i in ids])
+    centres = np.repeat(np.array([[known[i].x, known[i].y] for i in ids], dtype=np.float64),
+                        4, axis=0)
+    scale = 1.0
+    for k in range(iterations + 1):
+        H, _ = cv2.findHomography(ideal, centres + scale * offsets, 0)
+        if H is None or k == iterations:
+            break
+        # the corners on the floor about their marker's centre, against the printed shape
+        m = cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), H).reshape(-1, 4, 2)
+        o = (m - m.mean(axis=1, keepdims=True)).reshape(-1, 2)
+        scale = float((o * offsets).sum() / (offsets * offsets).sum())
+    return H, scale, centres + scale * offsets
+
+
+def pose_homography(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The homography (ideal pixels -> floor cm) of a camera of intrinsics ``K`` at pose
+    ``R``, ``t`` (floor -> camera frame): the inverse of K [r1 r2 t]."""
+    H = np.linalg.inv(K @ np.column_stack([R[:, 0], R[:, 1], np.ravel(t)]))
+    return H / H[2, 2]
+
+
 def calibrate_floor(frames: Iterable[np.ndarray], layout: Layout = DEFAULT_LAYOUT,
                     lens: Lens | None = None, camera_height: float | None = None
                     ) -> Calibration:
     """The floor homography and the camera's position from frames showing the floor markers,
     checked (refused with InputError on a failed check) and with the position error to expect
-    over the area."""
+    over the area. With a lens, the homography is the camera's pose's (:func:`camera_pose`);
+    without, the free one of :func:`fit_floor`."""
     frames = list(frames)
     if not frames:
         raise InputError("no frames to calibrate from")
     size = (frames[0].shape[1], frames[0].shape[0])
     obs, n = floor_observations(frames, layout)
+    return calibrate_corners(obs, size, layout, lens, camera_height, n)
+
+
+def calibrate_corners(obs: Corners, size: tuple[int, int], layout: Layout = DEFAULT_LAYOUT,
+                      lens: Lens | None = None, camera_height: float | None = None,
+                      frames: int = 1) -> Calibration:
+    """:func:`calibrate_floor` from the floor markers' corners seen (id -> 4 distorted pixel
+    corners, OpenCV's order) over ``frames`` frames of ``size`` (width, height)."""
+    n = frames
     known = layout.floor_by_id()
-    ids = sorted(obs)
+    ids = sorted(i for i in obs if i in known)
     if len(ids) < MIN_FLOOR_MARKERS:
         missing = sorted(set(known) - set(ids))
         raise InputError(f"{len(ids)} of the {len(known)} floor markers seen (ids "
                          f"{ids or 'none'}; missing {missing}); need at least "
                          f"{MIN_FLOOR_MARKERS} to calibrate the floor")
     px = np.concatenate([obs[i] for i in ids])
-    floor = np.concatenate([floor_corners(known[i]) for i in ids])
     ideal = undistort(px, lens.K, lens.dist) if lens is not None else px
-    H, _ = cv2.findHomography(ideal, floor, 0)
-    if H is None:
+    free, scale, floor = fit_floor(ideal, layout, ids)
+    if free is None:
         raise InputError("the floor markers' corners give no homography (markers in a line?)")
+    pose = camera_pose(free, px, floor, size, lens, camera_height)
+    H = free if lens is None else pose_homography(lens.K, pose["R"], pose["t"])
     res = cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), H).reshape(-1, 2) - floor
     d = np.hypot(res[:, 0], res[:, 1])
     back = cv2.perspectiveTransform(floor.reshape(-1, 1, 2), np.linalg.inv(H)).reshape(-1, 2)
     rms_px = float(np.sqrt(((back - ideal) ** 2).sum(1).mean()))
+    off = np.hypot(*res.reshape(-1, 4, 2).mean(axis=1).T)  # each marker's centre
     err = {"rms": round(float(np.sqrt((d ** 2).mean())), 4), "max": round(float(d.max()), 4),
-           "markers": ids, "frames": n}
+           "markers": ids, "frames": n, "print_scale": round(scale, 4),
+           "worst_marker": [ids[int(np.argmax(off))], round(float(off.max()), 4)]}
     cm_per_px = float(np.median([known[i].size / np.linalg.norm(
         obs[i] - np.roll(obs[i], 1, axis=0), axis=1).mean() for i in ids]))
     checks = []
@@ -515,14 +566,18 @@ def calibrate_floor(frames: Iterable[np.ndarray], layout: Layout = DEFAULT_LAYOU
         checks += lens.checks(size, cm_per_px) + q.lens_size_check(lens.size, size)
     else:
         checks.append(q.no_lens_check())
-    checks.append(q.floor_check(err["rms"], err["max"], rms_px, lens is not None))
-    pose = camera_pose(H, px, floor, size, lens, camera_height)
+    checks.append(q.floor_check(err["rms"], err["max"], rms_px, lens is not None,
+                                tuple(err["worst_marker"])))
+    checks.append(q.print_scale_check(scale))
     if pose["focal"] is not None:
         checks.append(q.focal_check(pose["focal"], size[0]))
     checks += q.height_check(None if pose["fitted"] is None else float(pose["fitted"][2]),
                              camera_height, lens is not None, layout.robot.height)
     if lens is not None:
-        checks.append(q.pose_check(pose["fitted"], pose["floor"], layout.robot.height))
+        checks.append(q.pose_check(pose["fitted"], pose["floor"], layout.robot.height,
+                                   pose["floor_sigma"]))
+        loose = cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), free).reshape(-1, 2) - floor
+        checks.append(q.lens_floor_check(res, loose))
     q.refuse(checks)
     cal = Calibration(size, layout, H, pose["center"], lens, err)
     # what the corners' noise explains of the floor's fit (the board's corners fit as well
@@ -537,12 +592,14 @@ def calibrate_floor(frames: Iterable[np.ndarray], layout: Layout = DEFAULT_LAYOU
 
 
 def _center_sigma(pose: dict, given: float | None) -> np.ndarray:
-    """The camera centre's uncertainty per axis (cm): with a lens, its centre and the floor
-    markers' apart (at least 0.5 % of the height); else GIVEN_HEIGHT_SIGMA of the height; a
-    given height at least as far as the fitted one."""
+    """The camera centre's uncertainty per axis (cm): with a lens, how much farther its centre
+    and the floor markers' lie apart than the floor markers' own uncertainty (twice its sd)
+    explains (at least 0.5 % of the height); else GIVEN_HEIGHT_SIGMA of the height; a given
+    height at least as far as the fitted one."""
     c = pose["center"]
     if pose["floor"] is not None:
-        s = np.maximum(np.abs(pose["fitted"] - pose["floor"]), 0.005 * c[2])
+        apart = np.abs(pose["fitted"] - pose["floor"]) - 2 * pose["floor_sigma"]
+        s = np.maximum(apart, 0.005 * c[2])
     else:
         s = np.full(3, (0.01 if pose["lens"] else q.GIVEN_HEIGHT_SIGMA) * c[2])
     if given is not None and pose["fitted"] is not None:
@@ -556,15 +613,14 @@ def camera_pose(H: np.ndarray, px: np.ndarray, floor: np.ndarray, size: tuple[in
     focal length the homography implies: ``focal``) and a given height in place of the fitted
     one; ``fitted``, solvePnP's centre (None when the view is too square-on to fit it without
     a lens); ``floor``, with a lens, the centre the floor markers alone imply (the focal
-    length of the floor's perspective; None when too square-on)."""
+    length of the floor's perspective of ``H``, the free homography; None when too
+    square-on); ``R``, ``t``, solvePnP's pose (floor -> camera frame; None without one)."""
     principal = ((size[0] - 1) / 2, (size[1] - 1) / 2)
-    focal = floor_centre = None
+    focal = floor_centre = floor_sigma = None
     if lens is not None:
         K, dist = lens.K, lens.dist
-        f = focal_from_homography(np.linalg.inv(H), K[:2, 2])
-        if f is not None:
-            floor_centre = q.pose_from_homography(H, np.array([[f, 0, K[0, 2]],
-                                                               [0, f, K[1, 2]], [0, 0, 1]]))
+        floor_centre, floor_sigma = floor_alone_centre(
+            H, q.homography_covariance(H, undistort(px, K, dist), floor, group=4), K[:2, 2])
     else:
         focal = focal_from_homography(np.linalg.inv(H), principal)
         if focal is None:
@@ -574,11 +630,15 @@ def camera_pose(H: np.ndarray, px: np.ndarray, floor: np.ndarray, size: tuple[in
                                  "calibrate the lens (--lens)")
             nadir = cv2.perspectiveTransform(np.array([[principal]]), H).reshape(2)
             return {"center": np.array([nadir[0], nadir[1], camera_height]), "fitted": None,
-                    "floor": None, "focal": None, "lens": False}
+                    "floor": None, "floor_sigma": None, "focal": None, "lens": False,
+                    "R": None, "t": None}
         K = np.array([[focal, 0, principal[0]], [0, focal, principal[1]], [0, 0, 1]])
         dist = None
     obj = np.column_stack([floor, np.zeros(len(floor))])
-    ok, rvec, tvec = cv2.solvePnP(obj, px, K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
+    # the lens's own undistortion (iterated to convergence; solvePnP's is not, which a strong
+    # lens's edges, where the floor markers are, would feel)
+    ideal = px if dist is None else undistort(px, K, dist)
+    ok, rvec, tvec = cv2.solvePnP(obj, ideal, K, None, flags=cv2.SOLVEPNP_ITERATIVE)
     if not ok:
         raise InputError("cannot place the camera from the floor markers")
     R = cv2.Rodrigues(rvec)[0]
@@ -588,5 +648,36 @@ def camera_pose(H: np.ndarray, px: np.ndarray, floor: np.ndarray, size: tuple[in
     c = fitted.copy()
     if camera_height is not None:
         c[2] = camera_height
-    return {"center": c, "fitted": fitted, "floor": floor_centre, "focal": focal,
-            "lens": lens is not None}
+    return {"center": c, "fitted": fitted, "floor": floor_centre, "floor_sigma": floor_sigma,
+            "focal": focal, "lens": lens is not None, "R": R, "t": tvec.ravel()}
+
+
+def floor_alone_centre(H: np.ndarray, cov: np.ndarray, principal: Sequence[float]
+                       ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The camera's centre the floor's perspective alone implies (the focal length that makes
+    the free homography ``H`` a rotation: :func:`focal_from_homography`), and its uncertainty
+    per axis (cm, sd) from the homography's covariance ``cov`` (its 8 parameters), through
+    the 16 sigma points of ``cov``: the nearer square-on the view, the less the perspective
+    tells. (None, None) when the view is too square-on to tell the focal length, at the fit
+    or at any of its sigma points."""
+    def centre(h: np.ndarray) -> np.ndarray | None:
+        f = focal_from_homography(np.linalg.inv(h), principal)
+        if f is None:
+            return None
+        return q.pose_from_homography(h, np.array([[f, 0, principal[0]],
+                                                   [0, f, principal[1]], [0, 0, 1]]))
+
+    c0 = centre(H)
+    if c0 is None:
+        return None, None
+    p0 = (H / H[2, 2]).ravel()[:8]
+    w, v = np.linalg.eigh((cov + cov.T) / 2)
+    L = v * np.sqrt(np.maximum(w, 0.0) * len(p0))
+    points = []
+    for k in range(len(p0)):
+        for sign in (1.0, -1.0):
+            c = centre(np.append(p0 + sign * L[:, k], 1.0).reshape(3, 3))
+            if c is None:
+                return None, None
+            points.append(c)
+    return c0, np.sqrt(np.mean((np.array(points) - c0) ** 2, axis=0))

@@ -10,6 +10,7 @@ is refused too.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import cv2
@@ -25,6 +26,11 @@ HEIGHT_GIVEN = (0.03, 0.10)  # the fitted height against --camera-height, relati
 ASPECT = (0.02, 0.10)  # fx / fy against 1 (square pixels)
 PRINCIPAL = (0.10, 0.25)  # the principal point's offset from the centre, share of the size
 POSE_AGREE_CM = (0.3, 1.0)  # the parallax error of the lens's and the floor's camera centres
+PRINT_SCALE = 0.05  # warn when the floor markers' fitted print scale is off 1 by more
+# warn when the lens fits the floor markers worse than a free homography by more than chance
+# gives this often (strict: the test takes every corner as precise as any other, which the
+# floor's far markers, fewer pixels a cm, are not)
+LENS_FLOOR_P = 1e-6
 # plausible ranges
 FOV_DEG = (30.0, 150.0)  # horizontal field of view
 HEIGHT_CM = (30.0, 1000.0)  # the lens above the floor
@@ -33,7 +39,8 @@ GIVEN_HEIGHT_SIGMA = 0.03  # a given height's assumed accuracy when nothing chec
 MAP_STEP_CM = 20.0
 
 LENS_ADVICE = "calibrate the lens with --lens (10-20 board images that cover the view)"
-BOARD_ADVICE = ("take the board images again: flat board, sharp images, at 35-65 cm, "
+BOARD_ADVICE = ("take the board images again: flat board, sharp images, spanning a third to "
+                "a half of the image's width (35-65 cm before a 75 deg webcam), "
                 "tilted, covering the whole view")
 
 
@@ -165,10 +172,17 @@ def lens_size_check(lens_size: tuple[int, int] | None, size: tuple[int, int]) ->
 # ---- the floor and the camera's position -----------------------------------------------------
 
 
-def floor_check(rms_cm: float, max_cm: float, rms_px: float | None, has_lens: bool) -> dict:
+def floor_check(rms_cm: float, max_cm: float, rms_px: float | None, has_lens: bool,
+                worst: tuple[int, float] | None = None) -> dict:
+    """The floor markers' corners through the fitted floor; ``worst``: the marker whose
+    centre the fit puts farthest from its place in the layout (id, cm), named when the fit
+    is not ok (a marker laid off its place, or a wrong place in the layout)."""
     status = grade(rms_cm, FLOOR_RMS_CM)
     text = (f"floor: the markers' corners fit to {rms_cm:.2f} cm RMS ({max_cm:.2f} cm max"
             + (f", {rms_px:.2f} px RMS)" if rms_px is not None else ")"))
+    if worst is not None and status != "ok":
+        text += (f"; marker {worst[0]} is seen {worst[1]:.2f} cm from its place in the "
+                 "layout")
     if status == "warn":
         text += (f"; poses between the markers are off by as much ({FLOOR_RMS_CM[0]:g} cm or "
                  "less expected)")
@@ -178,6 +192,21 @@ def floor_check(rms_cm: float, max_cm: float, rms_px: float | None, has_lens: bo
               "check that the floor markers lie flat where the layout puts them and that the "
               "lens file is this camera's")
     return check("floor_error", status, text, advice)
+
+
+def print_scale_check(scale: float) -> dict:
+    """The floor markers' print scale, fitted with the floor (the positions do not depend on
+    it: each marker's centre is where the layout puts it, whatever its size)."""
+    off = scale - 1
+    text = (f"floor: the markers are printed at {100 * scale:.1f} % of the layout's size "
+            "(fitted; the floor uses their centres' places, whatever their size)")
+    if abs(off) > PRINT_SCALE:
+        text += (f"; more than {100 * PRINT_SCALE:g} % off: a print fitted to the page, or "
+                 "sizes in the layout that are not the printed ones? A robot marker printed "
+                 "alike is seen as much off its size")
+    return check("print_scale", "warn" if abs(off) > PRINT_SCALE else "ok", text,
+                 "print at 100 % (no fit to page) and measure the 10 cm bar on each sheet; "
+                 "give the printed sizes in the layout")
 
 
 def height_check(fitted: float | None, given: float | None, has_lens: bool,
@@ -238,19 +267,60 @@ def parallax_error(c: np.ndarray, dc: np.ndarray, height: float) -> float:
     return float(np.hypot(*e.T).max())
 
 
-def pose_check(c_lens: np.ndarray, c_floor: np.ndarray | None, marker_height: float) -> dict:
+def pose_check(c_lens: np.ndarray, c_floor: np.ndarray | None, marker_height: float,
+               floor_sigma: np.ndarray | None = None) -> dict:
     """The camera's centre from the lens model (solvePnP with its intrinsics) against the one
-    the floor markers alone imply (the focal length of the floor's perspective)."""
+    the floor markers alone imply (the focal length of the floor's perspective), beyond what
+    the latter's own uncertainty explains (``floor_sigma``, sd per axis, cm: twice it; a
+    nearly square-on view tells the focal length poorly)."""
     if c_floor is None:
         return check("camera_pose", "ok", "camera: the view is too square-on for the floor "
                      "markers alone to place it; the lens's placement is not cross-checked")
     d = np.asarray(c_lens, dtype=np.float64) - c_floor
     cm = parallax_error(c_lens, d, marker_height)
-    return check("camera_pose", grade(cm, POSE_AGREE_CM),
-                 f"camera: placed {np.linalg.norm(d):.1f} cm apart by the lens model and by "
-                 f"the floor markers alone; up to {cm:.2f} cm of parallax error on the area "
-                 f"for a marker {marker_height:g} cm up", "the lens does not fit this camera "
-                 "(another camera, zoom, focus or resolution?): calibrate it again")
+    text = (f"camera: placed {np.linalg.norm(d):.1f} cm apart by the lens model and by the "
+            f"floor markers alone")
+    if floor_sigma is None:
+        excess = cm
+    else:
+        unsure = parallax_error(c_lens, 2 * np.asarray(floor_sigma, dtype=np.float64),
+                                marker_height)
+        excess = max(cm - unsure, 0.0)
+        text += (f" (which place it to +-{np.linalg.norm(2 * floor_sigma):.1f} cm: "
+                 f"{unsure:.2f} cm of parallax)")
+    text += (f"; up to {excess:.2f} cm of parallax error on the area for a marker "
+             f"{marker_height:g} cm up beyond that" if floor_sigma is not None else
+             f"; up to {cm:.2f} cm of parallax error on the area for a marker "
+             f"{marker_height:g} cm up")
+    return check("camera_pose", grade(excess, POSE_AGREE_CM), text,
+                 "the lens does not fit this camera (another camera, zoom, focus or "
+                 "resolution?): calibrate it again")
+
+
+def lens_floor_check(posed: np.ndarray, free: np.ndarray, group: int = 4) -> dict:
+    """Whether the floor markers' corners fit the camera's pose through the lens (residuals
+    ``posed``, (n, 2) cm; 6 parameters) about as well as a free homography (``free``; 8): an
+    F-test of the two more parameters, its statistic divided by the design effect of the
+    corners erring together by ``group`` (a marker laid off its place moves its four).
+    Warned when a fit that much worse comes by chance less than once in LENS_FLOOR_P."""
+    rss6, rss8 = float((posed ** 2).sum()), float((free ** 2).sum())
+    dof = posed.size - 8
+    n6, n8 = math.sqrt(rss6 / len(posed)), math.sqrt(rss8 / len(free))
+    if dof <= 0 or rss8 <= 0:
+        return check("lens_floor", "ok", "camera: too few floor markers to test the lens "
+                     "against them")
+    sums = free.reshape(-1, group, 2).sum(axis=1) if len(free) % group == 0 else free
+    deff = max(float((sums ** 2).sum()) / rss8, 1.0)
+    f = max(rss6 - rss8, 0.0) / 2 / (rss8 / dof) / deff
+    p = (1 + 2 * f / dof) ** (-dof / 2)  # the F(2, dof) distribution's tail
+    bad = p < LENS_FLOOR_P
+    text = (f"camera: through the lens, the floor markers' corners fit the camera's pose to "
+            f"{n6:.2f} cm RMS, a free homography to {n8:.2f} cm"
+            + (f" (chance gives that less than once in {1 / LENS_FLOOR_P:,.0f}: the lens "
+               "does not fit the floor's perspective)" if bad else ""))
+    return check("lens_floor", "warn" if bad else "ok", text,
+                 "the lens does not fit this camera (another camera, zoom, focus or "
+                 "resolution?): calibrate it again")
 
 
 def no_lens_check() -> dict:
@@ -296,8 +366,12 @@ def _jacobian(fun, p: np.ndarray) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def homography_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray) -> np.ndarray:
-    """The covariance (8, 8) of the homography's parameters from its fit's residuals."""
+def homography_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray,
+                          group: int = 1) -> np.ndarray:
+    """The covariance (8, 8) of the homography's parameters from its fit's residuals. With
+    ``group`` > 1, the points come in groups of as many that err together (a floor marker's
+    corners, when it is laid off its place): the covariance is widened by their design effect
+    (how much more the groups' summed residuals scatter than independent points would)."""
     p = _h_params(H)
 
     def res(q):
@@ -307,7 +381,11 @@ def homography_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray) -
     J = _jacobian(res, p)
     r = res(p)
     dof = max(len(r) - 8, 1)
-    return float(r @ r) / dof * np.linalg.pinv(J.T @ J)
+    cov = float(r @ r) / dof * np.linalg.pinv(J.T @ J)
+    if group > 1 and len(r) % (2 * group) == 0 and r @ r > 0:
+        sums = r.reshape(-1, group, 2).sum(axis=1)
+        cov *= max(float((sums ** 2).sum() / (r @ r)), 1.0)
+    return cov
 
 
 def pose_error_map(cal, cov: np.ndarray, center_sigma: np.ndarray, noise_px: float,

@@ -395,6 +395,32 @@ class Renderer:
         return self._finish(img, rng)
 
 
+def random_walk(n: int, rng: np.random.Generator,
+                start: tuple[float, float] = (90.0, 150.0), step: float = 10.0,
+                turn: float = 30.0, edge: float = 8.0) -> np.ndarray:
+    """A robot's random walk of ``n`` gait cycles over the area, for rendering a run: from
+    ``start`` (x, y cm) at a random heading, each gait cycle turns by up to ``turn`` degrees
+    either way and walks ``step`` cm; a step that would come closer than ``edge`` cm to the
+    area's edges is walked the other way instead (the walk bounces off them).
+
+    Draws one uniform heading from ``rng`` and one uniform turn per gait cycle, in that
+    order. Returns the pose after each gait cycle, (n, 3): x, y cm and compass heading (deg,
+    unwrapped: the sum of the turns)."""
+    x, y = (float(v) for v in start)
+    h = float(rng.uniform(-180, 180))
+    out = []
+    for _ in range(n):
+        h += float(rng.uniform(-turn, turn))
+        nx, ny = x + step * np.sin(np.radians(h)), y + step * np.cos(np.radians(h))
+        if not (AREA_X[0] + edge <= nx <= AREA_X[1] - edge
+                and AREA_Y[0] + edge <= ny <= AREA_Y[1] - edge):
+            h += 180.0
+            nx, ny = x + step * np.sin(np.radians(h)), y + step * np.cos(np.radians(h))
+        x, y = nx, ny
+        out.append((x, y, h))
+    return np.array(out, dtype=np.float64).reshape(-1, 3)
+
+
 def board_poses(camera: Camera, board: Board, n: int, rng: np.random.Generator,
                 distance: tuple[float, float] = (35.0, 65.0), spread: float = 0.6
                 ) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -115,7 +115,8 @@ def write_sheets(path: Path, layout: Layout = DEFAULT_LAYOUT, board: Board = DEF
         _page(pdf, img, size, [
             f"LENS board: {cols} x {rows} squares of {board.square:g} cm "
             f"(markers {board.marker:g} cm)",
-            "glue it on something flat; hold it 35-65 cm before the camera, tilted,",
+            "glue it on something flat; hold it 35-65 cm before the camera (a wider lens:",
+            "closer, the board a third to a half of the view's width), tilted,",
             "in 10-20 images that between them cover the whole view"])
         pages += 1
     return pages
