@@ -59,4 +59,5 @@ EVALUATIONS = Bound(1, 10**11)  # coverage evaluations of one search (about 3 da
 SEARCH_EVALUATIONS = Bound(1, 10**9)  # anytime search per punctuation (about an hour)
 SEARCH_MODELS = Bound(1, 64)  # tables an anytime search pools each turn cycle over
 CHAINS = Bound(1, 1_024)  # independent chains of one search
+NOISY_SEARCH_SCALE = Bound(1, 1_000)  # a noisy anytime search's evaluations per noise-free one
 WALKS = Bound(1, 100_000)  # simulate: walks from drawn start poses or with step noise

@@ -12,6 +12,7 @@ import pytest
 
 from pac_host.coverage import parse_turn_cycle, simulate
 from pac_host.coverage.noisy import NoisyWalks, draw_normals
+from pac_host.errors import InputError
 from pac_host.experiments import experiment as ex
 from pac_host.learning import anytime_search, pal, profiles
 from pac_host.learning.anytime_search import SEARCH_WALKS, _AnytimeSearch
@@ -86,6 +87,25 @@ def test_the_ranking_between_punctuations_keeps_the_noisy_searchs_best_first(noi
     assert np.array_equal(fit, plain)  # the second figure stays the noise-free score
 
 
+def test_the_chains_finds_are_ranked_on_fresh_walks_of_the_model(noisy_run):
+    cfg, s1, r1, _, _, r2 = noisy_run
+    for rec in (r1, r2):
+        assert len(rec["search"]["chain_fresh_means"]) == cfg.search_chains
+    # the front is the find with the highest mean over fresh walks (not the search's own 32)
+    seed = s1.search["walks_seed"]
+    front = anytime_search.fresh_means(s1.models[0], s1.cga_pop[:1], s1.step_noise, seed, cfg,
+                                       s1.model_effects)
+    assert round(float(front[0]), 3) == max(r1["search"]["chain_fresh_means"])
+    # on walks apart from the search's: the two rankings of the population differ
+    walks = anytime_search.search_walks(s1.step_noise, seed, cfg)
+    on_search = NoisyWalks(s1.models[0], s1.step_noise, walks["normals"], 200,
+                           s1.model_effects).figures(s1.cga_pop)[2].mean(axis=1)
+    fresh = anytime_search.fresh_means(s1.models[0], s1.cga_pop, s1.step_noise, seed, cfg,
+                                       s1.model_effects)
+    assert not np.allclose(on_search, fresh)
+    assert anytime_search.RANK_WALKS >= 10 * SEARCH_WALKS
+
+
 def _advanced(cfg: PALConfig, noise, monkeypatch) -> tuple[list[dict], _AnytimeSearch]:
     """The keyword arguments every anytime.advance call of one on_corrected got."""
     calls: list[dict] = []
@@ -115,6 +135,28 @@ def test_the_search_objective_is_noisy_only_with_the_setting_and_an_estimate(mon
     assert without.record == no_estimate.record and without.chain == no_estimate.chain
     assert np.array_equal(without.pop, no_estimate.pop)
     assert with_noise.record != without.record and "walks_seed" not in without.chain
+
+
+def test_a_noisy_search_is_given_its_scale_of_evaluations(monkeypatch):
+    budgets: list[tuple[bool, int]] = []
+    real = anytime.advance
+
+    def spy(rows, pop, evaluations, *args, **kw):
+        budgets.append((kw.get("step_noise") is not None, evaluations))
+        return real(rows, pop, evaluations, *args, **kw)
+
+    monkeypatch.setattr(anytime, "advance", spy)
+    cfg = small(explore=0.0, noisy_search_scale=3)
+    assert profiles.apply("default", PALConfig()).noisy_search_scale == (
+        profiles.NOISY_SEARCH_SCALE) > 1
+    for noise, expected in ((NOISE, 3 * 4000), (None, 4000)):
+        budgets.clear()
+        state = first_state(cfg)
+        _AnytimeSearch(state, np.random.default_rng(3), cfg).on_corrected(
+            state.models, state.model_effects, state.operational, noise)
+        assert budgets and all(b == (noise is not None, expected) for b in budgets)
+    with pytest.raises(InputError, match="noisy_search_scale"):
+        small(noisy_search_scale=0).check()
 
 
 def test_the_noise_estimate_and_the_walks_are_saved_and_resumed(noisy_run):

@@ -183,6 +183,7 @@ def evolve_cmd(out_dir, resume_dir, generations, interval, method, model_fitness
                            refine_effects=learn.refine_effects,
                            operational_evidence=learn.operational_evidence,
                            search_noise=learn.search_noise,
+                           noisy_search_scale=learn.noisy_search_scale,
                            shapes=learn.shapes)
     # every value in range and every input file read (the model, the library of sweeps; the
     # emulator's table and effects below) before a port is opened or a file is written

@@ -22,11 +22,14 @@ from pac_host.learning.state import PALState
 from pac_host.model.effects import Effect
 from pac_host.model.step_noise import StepNoise
 from pac_host.search import cga, shapes
-from pac_host.search.optimize import WALKS_DEFAULT
+from pac_host.search.optimize import FRESH_WALKS, WALKS_DEFAULT
 
 # noisy walks of the model a turn cycle is scored over when the search knows the robot's step
 # noise: optimize's (measured there: 32 walks found higher expected sweeps than 64 in one time)
 SEARCH_WALKS = WALKS_DEFAULT
+# fresh noisy walks of the model the chains' finds are ranked on (:func:`fresh_means`), and the
+# seed stream they are drawn from beside the search walks' seed
+RANK_WALKS, RANK_STREAM = FRESH_WALKS, 1
 
 
 class _AnytimeSearch:
@@ -114,7 +117,7 @@ class _AnytimeSearch:
         pop = self.pop[np.argsort(-rank, kind="stable")]
         carried = None if self.chain is None else Chain.from_json(self.chain)
         others = [Chain.from_json(doc) for doc in (self.chain or {}).get("others", [])]
-        budget = self.cfg.search_evaluations
+        budget = self.cfg.search_evaluations * (self.cfg.noisy_search_scale if walks else 1)
         explore = round(budget * self.cfg.explore) if len(models) > 1 else 0
 
         def search(rng: np.random.Generator, chain: Chain | None, found: Sequence[np.ndarray]):
@@ -138,7 +141,7 @@ class _AnytimeSearch:
             self.chain["walks_seed"] = seed
             self.record.update(step_noise=noise.to_json(), walks=SEARCH_WALKS)
         if self.cfg.search_chains > 1:
-            self._other_chains(search, others)
+            self._other_chains(search, others, models[0], effects, noise, seed)
         if explore > 0:
             found, done, _ = anytime.advance(models[1], self.pop[:1], explore, self.rng,
                                              self.cfg.budget, effects, self.cfg.search,
@@ -153,7 +156,9 @@ class _AnytimeSearch:
             self.record["evaluations_while_walking"] = self.walking_evaluations
             self.record["best_score_while_walking"] = self.walking_best
 
-    def _other_chains(self, search: Callable, others: list) -> None:
+    def _other_chains(self, search: Callable, others: list, rows: np.ndarray,
+                      effects: Sequence[Effect], noise: StepNoise | None,
+                      walks_seed: int | None) -> None:
         """Chains 1.. of ``cfg.search_chains``, each run by ``search`` as chain 0 was, but
         from its own carried point in ``others`` (the population's best on the first
         punctuation) with that point as its source, not the population's best or the
@@ -163,7 +168,10 @@ class _AnytimeSearch:
         whenever it beat the chain's own point, and the chains ended most punctuations on one
         point: eight tries from one place, not eight searches (outside_library, 30 seeds: 26
         ended at 95% of the best known or more, against 13; docs/explanation/learning.md,
-        "Chains kept apart")."""
+        "Chains kept apart"). With step ``noise`` the chains' finds are ranked by their mean
+        over :data:`RANK_WALKS` fresh noisy walks of the model (:func:`fresh_means`), not by
+        the searches' own walks: the highest of eight means over the same 32 walks is the
+        luckiest as often as the best."""
         from pac_host.search.anytime import to_front
 
         seeds = self.rng.integers(2**63, size=self.cfg.search_chains - 1)
@@ -176,6 +184,11 @@ class _AnytimeSearch:
             found.append((rec.get("best_score", -1), out[0]))
         scores = [int(score) for score, _ in found]
         best = scores.index(max(scores))
+        if noise is not None and walks_seed is not None:
+            means = fresh_means(rows, np.stack([x for _, x in found]), noise, walks_seed,
+                                self.cfg, effects)
+            best = int(np.argmax(means))
+            self.record["chain_fresh_means"] = [round(float(m), 3) for m in means]
         self.pop = to_front(self.pop, found[best][1])[: len(self.pop)]
         self.chain["others"] = docs
         self.record.update(chain_scores=scores, best_chain=best)
@@ -211,6 +224,21 @@ def search_walks(noise: StepNoise | None, seed: int | None, cfg: PALConfig) -> d
             "walk_starts": None if error is None else error.draw(SEARCH_WALKS, rng)}
 
 
+def fresh_means(rows: np.ndarray, genes: np.ndarray, noise: StepNoise, walks_seed: int,
+                cfg: PALConfig, effects: Sequence[Effect] = ()) -> np.ndarray:
+    """The mean fitness of turn cycles ``genes`` (P, 9, 2) over :data:`RANK_WALKS` noisy walks
+    of ``rows`` apart from the search's (drawn from ``walks_seed`` with a stream of their own,
+    so a resumed run walks them again), each from a start drawn with the placement error."""
+    from pac_host.coverage.noisy import NoisyWalks, draw_normals
+
+    rng = np.random.default_rng([walks_seed, RANK_STREAM])
+    normals = draw_normals(rng, RANK_WALKS, cfg.budget)
+    error = cfg.placement_error()
+    starts = START_POSE if error is None else error.draw(RANK_WALKS, rng)
+    return NoisyWalks(rows, noise, normals, cfg.budget, effects, starts).figures(genes)[2].mean(
+        axis=1)
+
+
 def carried_walks(state: PALState, cfg: PALConfig) -> tuple[StepNoise | None, int | None]:
     """The step noise and walks' seed the state's carried search last ranked with (None,
     None: a noise-free search)."""
@@ -225,16 +253,11 @@ def _ranking(models: np.ndarray, pop: np.ndarray, cfg: PALConfig, effects: Seque
              ) -> tuple[np.ndarray, np.ndarray]:
     """What an anytime search ranks turn cycles (P, 9, 2) by on the model ``models[0]`` (their
     coverage scores from the start, or with a placement error or pooled models their search
-    scores pooled over the walks, or with step ``noise`` their mean fitness over the walks of
-    ``walks_seed`` (:func:`search_walks`), as the search compares them), and their coverage
-    scores on the model from the start."""
-    walks = search_walks(noise, walks_seed, cfg)
-    if walks:
-        from pac_host.coverage.noisy import NoisyScorer
-
-        starts = START_POSE if walks["walk_starts"] is None else walks["walk_starts"]
-        rank = NoisyScorer(models[0], noise, walks["normals"], cfg.budget, effects,
-                           starts).both(pop)[0]
+    scores pooled over the walks, or with step ``noise`` their mean fitness over
+    :data:`RANK_WALKS` fresh walks of ``walks_seed`` (:func:`fresh_means`), as the chains'
+    finds are ranked), and their coverage scores on the model from the start."""
+    if noise is not None and walks_seed is not None:
+        rank = fresh_means(models[0], pop, noise, walks_seed, cfg, effects)
         return rank, cga.fitness(models[0], pop, cfg.budget, effects)
     error, pooled = cfg.placement_error(), _pooled_models(models, cfg)
     if error is None and pooled is None:

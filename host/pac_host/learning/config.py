@@ -122,6 +122,11 @@ class PALConfig:
     # expectations (True), or by one noise-free walk (False, runs saved before it and the
     # paper). Without a clear estimate the search is the noise-free one, figure for figure
     search_noise: bool = False
+    # With search_noise and a clear estimate: the search's evaluations each punctuation are
+    # ``search_evaluations`` times this. An evaluation is then one noisy walk, so a turn cycle
+    # costs SEARCH_WALKS of them (pac_host.learning.anytime_search); a real robot's tests take
+    # minutes a punctuation, against seconds for these walks
+    noisy_search_scale: int = 1
     # The robot's step noise when it is known rather than estimated (its JSON form,
     # pac_host.model.step_noise; None: estimated from the observed steps): the oracle control
     # of an experiment on a noisy robot knows its robot as it knows its table
@@ -176,6 +181,7 @@ class PALConfig:
         if self.explore > 0 and self.search == "cga":
             raise InputError("--explore needs an anytime profile (the paper's CGA searches one "
                              "model)")
+        limits.NOISY_SEARCH_SCALE.check(self.noisy_search_scale, "noisy_search_scale")
         if self.search_noise and self.search == "cga":
             raise InputError("search_noise needs an anytime profile (the paper's CGA scores "
                              "one noise-free walk)")

@@ -91,6 +91,7 @@ class EvolveConfig:
     # runs saved before it: False
     operational_evidence: bool = pal.PALConfig.operational_evidence
     search_noise: bool = pal.PALConfig.search_noise  # runs saved before it: False
+    noisy_search_scale: int = pal.PALConfig.noisy_search_scale  # runs saved before it: 1
 
     def check(self) -> None:
         """Every value in its range and the model file read: one line (InputError) before
@@ -131,6 +132,7 @@ class EvolveConfig:
             finish_moves=self.finish_moves, refine_effects=self.refine_effects,
             operational_evidence=self.operational_evidence,
             search_noise=self.search_noise and self.search != "cga",
+            noisy_search_scale=self.noisy_search_scale,
             search_evaluations=self.search_evaluations,
             search_while_walking=self.search_while_walking and self.search != "cga")
 
