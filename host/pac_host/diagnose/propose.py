@@ -332,11 +332,28 @@ def _time_hypers(ctx, prob):
     return [max(float(_time(ctx)[ctx.batch.mask].max()), 1.0)]
 
 
+def _decays(x: np.ndarray, span: float, sym: str, big: str, taus) -> list:
+    """(label, covariate) pairs of a count ``x``: x/span, its square and exp(-x/tau) for
+    each tau, labelled with the count's symbol ``sym`` and the span's ``big``."""
+    return ([(f"{sym}/{big}", x / span), (f"({sym}/{big})^2", (x / span) ** 2)]
+            + [(f"exp(-{sym}/{tau:.0f})", np.exp(-x / tau)) for tau in taus])
+
+
+def _both_of(ctx, terms: list, note: str):
+    """The move scaled by each covariate of ``terms`` and the same term added
+    (:func:`_both`), each name followed by ``note``."""
+    cols, names = [], []
+    for label, x in terms:
+        c, n = _both(ctx, x, label)
+        cols += c
+        names += [f"{v} ({note})" for v in n]
+    return cols, names
+
+
 def _time_cols(ctx, t_max):
     t = _time(ctx)
     cols, names = [], []
-    for label, x in ([("t/T", t / t_max), ("(t/T)^2", (t / t_max) ** 2)]
-                     + [(f"exp(-t/{tau:.0f})", np.exp(-t / tau)) for tau in TAUS]):
+    for label, x in _decays(t, t_max, "t", "T", TAUS):
         cols += _scaled(ctx.pred, x)
         names += [f"{c} scaled by {label} (t: cycles since power-on, T = {t_max:.0f})"
                   for c in COMPONENTS]
@@ -345,14 +362,8 @@ def _time_cols(ctx, t_max):
 
 def _time_all(ctx, t_max):
     """The move scaled by the time terms, and the same terms added."""
-    t = _time(ctx)
-    cols, names = [], []
-    for label, x in ([("t/T", t / t_max), ("(t/T)^2", (t / t_max) ** 2)]
-                     + [(f"exp(-t/{tau:.0f})", np.exp(-t / tau)) for tau in TAUS]):
-        c, n = _both(ctx, x, label)
-        cols += c
-        names += [f"{v} (t: cycles since power-on, T = {t_max:.0f})" for v in n]
-    return cols, names
+    return _both_of(ctx, _decays(_time(ctx), t_max, "t", "T", TAUS),
+                    f"t: cycles since power-on, T = {t_max:.0f}")
 
 
 def _run_hypers(ctx, prob):
@@ -363,13 +374,8 @@ def _run_cols(ctx, n_max):
     """The move scaled and a term added, by powers of the cycles since the run's start and
     exp(-i / tau) (a warm-up at the start of every run, a cable winding up along it)."""
     i = np.broadcast_to(np.arange(ctx.batch.ids.shape[1], dtype=float)[None], ctx.batch.ids.shape)
-    cols, names = [], []
-    for label, x in ([("i/N", i / n_max), ("(i/N)^2", (i / n_max) ** 2)]
-                     + [(f"exp(-i/{tau:.0f})", np.exp(-i / tau)) for tau in TAUS_RUN]):
-        c, n = _both(ctx, x, label)
-        cols += c
-        names += [f"{v} (i: cycles since the run's start, N = {n_max:.0f})" for v in n]
-    return cols, names
+    return _both_of(ctx, _decays(i, n_max, "i", "N", TAUS_RUN),
+                    f"i: cycles since the run's start, N = {n_max:.0f}")
 
 
 def _change_hypers(ctx, prob):
