@@ -302,3 +302,18 @@ def test_the_oracle_knows_its_robots_step_noise_from_the_first_search():
     # without the setting, the same oracle searches one noise-free walk
     plain = pal.initial_state(noisy, np.random.default_rng(1), replace(cfg, known_step_noise=None))
     assert plain.step_noise is None
+
+
+def test_the_runs_best_is_measured_again_before_it_raises_the_optimum(tmp_path):
+    actual = shifted_table().with_step_noise(parse_step_noise("0.3,1"))
+    lucky, plain = "29:2,28:9,22:5,18:6,11:8,10:1,6:4,5:6,3:4", "12:2,11:2,22:11,18:4,0:3"
+    log = tmp_path / "log.jsonl"
+    # a 400-walk mean is a draw: the one logged highest may be the luckiest, not the best
+    log.write_text("".join(json.dumps({"operational": tc, "operational_expected": {"mean": m}})
+                           + "\n" for tc, m in ((lucky, 99.0), (plain, 3.0), (lucky, 20.0))))
+    cfg = experiment_cfg()
+    again = ex.observed_again(actual, log, cfg)
+    truth = [ex.expected_on_robot(actual, parse_turn_cycle(tc), 0, i, cfg, ex.STAGE_OBSERVED,
+                                  ex.OBSERVED_WALKS) for i, tc in enumerate((lucky, plain))]
+    assert truth[0]["walks"] == ex.OBSERVED_WALKS >= 10 * ex.EXPECTED_WALKS
+    assert again == max(t["mean"] for t in truth) < 60

@@ -47,11 +47,17 @@ from pac_host.search.optimize import OptimizeConfig, run_chain
 # STAGE_STEPS the actual robot's step noise in a run's tests (the same for each method of a
 # seed), STAGE_EXPECTED the fresh walks each punctuation's operational turn cycle is measured
 # on, on a noisy actual robot (by seed and punctuation: the same for each method, any --jobs),
-# STAGE_OPTIMUM_EXPECTED the fresh walks an optimum run's result is measured on there
+# STAGE_OPTIMUM_EXPECTED the fresh walks an optimum run's result is measured on there,
+# STAGE_OBSERVED those the runs' best operational turn cycles are measured on again
 (STAGE_INITIAL, STAGE_PAL, STAGE_OPTIMUM, STAGE_PLACED, STAGE_STEPS, STAGE_EXPECTED,
- STAGE_OPTIMUM_EXPECTED) = range(7)
+ STAGE_OPTIMUM_EXPECTED, STAGE_OBSERVED) = range(8)
 # fresh noisy walks of the actual robot behind each operational turn cycle's expected coverage
 EXPECTED_WALKS = 400
+# On a noisy actual robot the optimum is raised by what the runs showed only after the
+# OBSERVED_CANDIDATES highest operational turn cycles are measured again over OBSERVED_WALKS
+# fresh walks: the highest of a run's hundreds of 400-walk means is its luckiest (a sweep
+# logged at 25.52 averaged 24.82 over 4000 walks), and it set the target every run was judged by
+OBSERVED_CANDIDATES, OBSERVED_WALKS = 8, 4000
 METHODS = ("full", "partial", "oracle")
 # the optimum search's evaluations per run for the paper's 1000 generations; shorter runs get
 # proportionately fewer (optimum_evaluations_for), down to the floor
@@ -234,16 +240,16 @@ def pal_run(
 
 
 def expected_on_robot(actual: GaitTable, turn_cycle: np.ndarray, seed: int, punctuation: int,
-                      cfg: ExperimentConfig, stage: int = STAGE_EXPECTED) -> dict:
-    """What a turn cycle delivers on the noisy actual robot: its mean fitness over
-    :data:`EXPECTED_WALKS` fresh noisy walks (the compiled kernel,
-    :mod:`pac_host.coverage.noisy`) drawn from the run's seed and ``punctuation`` (0, 1, ...),
-    with the mean's 95% interval: ``{"mean", "interval", "walks"}``."""
+                      cfg: ExperimentConfig, stage: int = STAGE_EXPECTED,
+                      walks: int = EXPECTED_WALKS) -> dict:
+    """What a turn cycle delivers on the noisy actual robot: its mean fitness over ``walks``
+    fresh noisy walks (the compiled kernel, :mod:`pac_host.coverage.noisy`) drawn from the
+    run's seed and ``punctuation`` (0, 1, ...), with the mean's 95% interval:
+    ``{"mean", "interval", "walks"}``."""
     from pac_host.coverage.noisy import NoisyWalks, draw_normals
     from pac_host.learning.operational import Estimate
 
-    z = draw_normals(_rng(cfg.base_seed, seed, stage, punctuation), EXPECTED_WALKS,
-                     cfg.pal.budget)
+    z = draw_normals(_rng(cfg.base_seed, seed, stage, punctuation), walks, cfg.pal.budget)
     fit = NoisyWalks(actual.rows, actual.step_noise, z, cfg.pal.budget,
                      actual.effects).figures(np.asarray(turn_cycle)[None])[2, 0]
     fit = fit.astype(np.float64)
@@ -509,13 +515,17 @@ def run_experiment(
                        for (s, m), recs in done_runs.items()]
     searched = max(r["fitness"] for r in optimum_runs)
     observed = max(max(r["coverage"]) for r in results)
+    if not actual.step_noise.is_zero():
+        observed = observed_again(actual, log_path, cfg)
     optimum = max(searched, observed)
     write_atomic(out_dir / "optimum.json", json.dumps(
         {"fitness": optimum, "searched": searched, "observed": observed, "runs": optimum_runs,
          "search": _optimum_search(cfg),
          "how": f"the best of {cfg.optimum_runs} {_optimum_search(cfg)['runs']} on the actual "
                 "robot's table, and of every operational turn cycle the experiment's runs "
-                "tested on it"}, indent=1) + "\n")
+                "tested on it" + ("" if actual.step_noise.is_zero() else
+                                  f" (the {OBSERVED_CANDIDATES} highest measured again over "
+                                  f"{OBSERVED_WALKS} fresh walks)")}, indent=1) + "\n")
     best = best_known_on(actual, cfg, optimum)
     for r in results:
         r["reached_optimum_at"] = reached_at(r["generations"], r["coverage"], optimum)
@@ -538,6 +548,22 @@ def run_experiment(
     }
     write_atomic(out_dir / "summary.json", json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def observed_again(actual: GaitTable, log_path: Path, cfg: ExperimentConfig) -> float:
+    """The highest of the :data:`OBSERVED_CANDIDATES` best operational turn cycles of the
+    logged runs (by their logged means) measured again over :data:`OBSERVED_WALKS` fresh walks
+    of the noisy actual robot (stream :data:`STAGE_OBSERVED`, the same for any --jobs or
+    resume)."""
+    best: dict[str, float] = {}
+    for line in log_path.read_text().splitlines():
+        rec = json.loads(line)
+        tc, mean = rec["operational"], rec["operational_expected"]["mean"]
+        best[tc] = max(best.get(tc, mean), mean)
+    top = sorted(best, key=lambda tc: (-best[tc], tc))[:OBSERVED_CANDIDATES]
+    again = [expected_on_robot(actual, parse_turn_cycle(tc), 0, i, cfg, STAGE_OBSERVED,
+                               OBSERVED_WALKS)["mean"] for i, tc in enumerate(top)]
+    return max(again, default=0.0)
 
 
 def best_known_on(actual: GaitTable, cfg: ExperimentConfig, optimum: float) -> dict:
