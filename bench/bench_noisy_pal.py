@@ -10,7 +10,7 @@ shifted robot and others, at 0.3 cm / 1 deg and 0.15 cm / 0.5 deg.
 
 Usage: ``python bench/bench_noisy_pal.py [--robot shifted|FILE] [--step-noise 0.3,1]
 [--seeds 10] [--generations 1000]`` or ``python bench/run.py --only noisy_pal`` (the shifted
-robot at 0.3 cm / 1 deg, 10 seeds of 25 punctuations, two runs at a time: about 40 minutes on
+robot at 0.3 cm / 1 deg, 10 seeds of 25 punctuations, two runs at a time: about 25 minutes on
 two cores; ``--quick``: 2 seeds of 5 punctuations).
 """
 
