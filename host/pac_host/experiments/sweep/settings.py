@@ -102,6 +102,7 @@ RANGES: dict[Path_, limits.Bound | Span] = {
     ("pal", "search_evaluations"): limits.Bound(0, limits.SEARCH_EVALUATIONS.hi),
     ("pal", "search_models"): limits.SEARCH_MODELS,
     ("pal", "search_chains"): limits.CHAINS,
+    ("pal", "noisy_search_scale"): limits.NOISY_SEARCH_SCALE,
     ("pal", "explore"): Span(0.0, 1.0, "a share of the budget", hi_open=True),
     ("pal", "kick_length_cost"): Span(0.0, None, "cm"),
     ("pal", "shorten_after"): limits.Bound(0, MAX_SHORTEN_AFTER, "kicks"),
