@@ -66,7 +66,7 @@ test-all: $(STAMP) firmware
 # the same run). Progress goes to stderr, a line per step through a pipe.
 demo: $(STAMP)
 	rm -rf $(OUT)/demo-experiment $(OUT)/demo-evolve
-	$(BIN)/pac-host evolve --out $(OUT)/demo-evolve --generations 160 --budget 200 --search-evaluations 300000 --seed 1
+	$(BIN)/pac-host evolve --out $(OUT)/demo-evolve --generations 160 --budget 200 --search-evaluations 200000 --seed 1
 	$(BIN)/pac-host experiment --seeds 2 --generations 80 --methods partial,oracle --search-evaluations 50000 --optimum-runs 2 --jobs 2 --out $(OUT)/demo-experiment
 	@echo "demo done: plots in $(OUT)/demo-evolve/*.png and $(OUT)/demo-experiment/*.png"
 
