@@ -43,8 +43,17 @@ LENGTH = (0.5, 30.0)  # bounds of the length scale, in steps of turn strength
 
 def kernel(a: float, b: float, length: float, rho: float) -> np.ndarray:
     """The prior covariance of the 32 row offsets (see the module docstring)."""
-    shared = np.exp(-_DS2 / (2.0 * length * length)) * np.where(_SAME, 1.0, rho)
-    return a * a * np.eye(N_IDS) + b * b * shared
+    return a * a * np.eye(N_IDS) + b * b * _shared(_decay(length), rho)
+
+
+def _decay(length: float) -> np.ndarray:
+    """exp(-(s_i - s_j)^2 / (2 l^2)): how alike two rows' offsets are by turn strength."""
+    return np.exp(-_DS2 / (2.0 * length * length))
+
+
+def _shared(decay: np.ndarray, rho: float) -> np.ndarray:
+    """The shared part S of the prior: ``decay``, times ``rho`` across turn sides."""
+    return decay * np.where(_SAME, 1.0, rho)
 
 
 def _whitened(K: np.ndarray, gram: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
@@ -54,14 +63,20 @@ def _whitened(K: np.ndarray, gram: np.ndarray, sigma: float) -> tuple[np.ndarray
     return L, np.eye(N_IDS) + L.T @ gram @ L / sigma**2
 
 
+def _evidence_parts(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float):
+    """L, M (:func:`_whitened`), M's Cholesky factor C, z = C^-1 L' X'r and the log evidence
+    (:func:`log_evidence`), which the gradient reuses."""
+    L, M = _whitened(K, gram, sigma)
+    C = np.linalg.cholesky(M)
+    z = np.linalg.solve(C, L.T @ xty)
+    return L, M, C, z, 0.5 * float(z @ z) / sigma**4 - float(np.log(np.diag(C)).sum())
+
+
 def log_evidence(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float) -> float:
     """The log marginal likelihood of the residuals, up to terms that do not depend on ``K``:
     residuals ``r = X o + e``, ``o ~ N(0, K)``, ``e ~ N(0, sigma^2)``; ``gram`` = X'X and
     ``xty`` = X'r. Computed in the 32 offsets (Woodbury), never in the steps."""
-    L, M = _whitened(K, gram, sigma)
-    C = np.linalg.cholesky(M)
-    z = np.linalg.solve(C, L.T @ xty)
-    return 0.5 * float(z @ z) / sigma**4 - float(np.log(np.diag(C)).sum())
+    return _evidence_parts(K, gram, xty, sigma)[-1]
 
 
 def _evidence_grad(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: float
@@ -70,10 +85,7 @@ def _evidence_grad(K: np.ndarray, gram: np.ndarray, xty: np.ndarray, sigma: floa
     (d log p = tr(W dK)): W = (K^-1 (S + m m') K^-1 - K^-1) / 2 for the posterior mean m and
     covariance S, computed as (v v' - K^-1 S X'X / sigma^2) / 2 with v = K^-1 m, from the
     Cholesky factors the evidence uses (no inverse of K is formed)."""
-    L, M = _whitened(K, gram, sigma)
-    C = np.linalg.cholesky(M)
-    z = np.linalg.solve(C, L.T @ xty)
-    value = 0.5 * float(z @ z) / sigma**4 - float(np.log(np.diag(C)).sum())
+    L, M, C, z, value = _evidence_parts(K, gram, xty, sigma)
     # (numpy's solve on the 32 x 32 factors: scipy.linalg's triangular solves cost far more
     # in their checks and wrappers than in the arithmetic at this size)
     u = np.linalg.solve(C.T, z) / sigma**2     # M^-1 L' X'r / sigma^2
@@ -139,9 +151,8 @@ def smooth_prior(gram: np.ndarray, xty: np.ndarray, sigma: float, scale: float,
 
     def loss(x):  # minus the smooth prior's gain over the fitted independent prior, in nats
         a, b, length = np.exp(x[:3])
-        rho = float(x[3])
-        decay = np.exp(-_DS2 / (2.0 * length * length))
-        shared = decay * np.where(_SAME, 1.0, rho)
+        decay = _decay(length)
+        shared = _shared(decay, float(x[3]))
         value, W = _evidence_grad(a * a * np.eye(N_IDS) + b * b * shared, gram, xty, sigma)
         # dK over the log of a, b and the length scale, and over rho
         grad = np.array([2.0 * a * a * np.trace(W), 2.0 * b * b * np.sum(W * shared),
