@@ -136,6 +136,32 @@ def test_objective_with_step_noise_scores_the_mean_of_its_walks_and_counts_each_
     assert plain.fingerprint() != objective.fingerprint()
 
 
+def test_a_remembered_batch_is_charged_in_full_and_scored_once_per_model(monkeypatch):
+    # every chain of a punctuation scores the model's re-expressed library: the second is
+    # charged the same evaluations and finds the same best, without walking it again
+    rows = shifted_table().rows
+    z = draw_normals(np.random.default_rng(1), 16, 200)
+    pop = _population(7, 12)
+    first = Objective(rows, step_noise=NOISE, normals=z)
+    keys = first(pop, remember=True)
+    walked = []
+    real = NoisyScorer.both
+    monkeypatch.setattr(NoisyScorer, "both", lambda self, g: walked.append(len(g)) or real(self, g))
+    again = Objective(rows, step_noise=NOISE, normals=z, limit=10 * 16)
+    np.testing.assert_array_equal(again(pop, remember=True), keys[:10])  # cut at its limit
+    assert walked == [10] and again.evaluations == 10 * 16  # a cut batch is another batch
+    same = Objective(rows, step_noise=NOISE, normals=z)
+    np.testing.assert_array_equal(same(pop, remember=True), keys)
+    assert walked == [10] and same.evaluations == first.evaluations == 12 * 16
+    assert np.array_equal(same.best, first.best) and same.best_score == first.best_score
+    other = Objective(rows, step_noise=NOISE, normals=z * 1.5)  # other walks: scored anew
+    other(pop, remember=True)
+    bent = rows.copy()
+    bent[3, 0] += 1e-9  # another model, however close
+    Objective(bent, step_noise=NOISE, normals=z)(pop, remember=True)
+    assert walked == [10, 12, 12]
+
+
 def test_optimize_with_step_noise_is_reproducible_and_measures_on_fresh_walks():
     rows = shifted_table().rows
     cfg = OptimizeConfig(evaluations=60_000, seed=2, step_noise=NOISE, walks=16, chains=2)

@@ -11,7 +11,9 @@ reproducible (a budget in seconds is not).
 from __future__ import annotations
 
 import hashlib
+import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -42,6 +44,14 @@ _SCORES = "search_score: fitness, reached sooner, fewer repeat visits"
 
 # walks of a noisy batch scored between two looks at the deadline (about 0.1 s)
 NOISY_CHUNK_WALKS = 1 << 17
+
+# Batches scored with ``remember`` (a model's re-expressed library, which every chain of a
+# punctuation scores on the same objective), by the objective's scores and the batch: the
+# scores of the last few, so the next chain is charged the evaluations without walking them
+# again (a noisy punctuation's eight chains spent a third of their time on this).
+_REMEMBERED: OrderedDict = OrderedDict()
+_REMEMBERED_SIZE = 16
+_REMEMBERED_LOCK = threading.Lock()  # evolve searches in a worker thread while the robot walks
 
 
 class Exhausted(Exception):
@@ -123,6 +133,7 @@ class Objective:
             self._scorer = Scorer(self.rows, self.budget, self.effects, poses, self.models)
         self.starts = self._scorer.walks  # walks a turn cycle costs
         self._loop_table = None
+        self._scores_key: str | None = None
 
     def loop_table(self) -> np.ndarray:
         """The model's gait cycles repeated 0..63 times
@@ -174,10 +185,12 @@ class Objective:
         between moves)."""
         return self.limit is not None and self.evaluations >= self.limit
 
-    def __call__(self, pop: np.ndarray) -> np.ndarray:
+    def __call__(self, pop: np.ndarray, remember: bool = False) -> np.ndarray:
         """Search scores of turn cycles (N, 9, 2); raises :class:`Exhausted` when the budget
         is spent (a batch that would pass the evaluation limit is cut to it, so the count is
-        exact; with ``finish`` neither: the caller stops between moves)."""
+        exact; with ``finish`` neither: the caller stops between moves). ``remember``: a batch
+        other objectives on the same model will score too; its scores are kept a while and
+        taken from there, counted as evaluations all the same (:data:`_REMEMBERED`)."""
         if self.expired():
             raise Exhausted
         if (self.step_noise is not None and len(pop) * self.starts > NOISY_CHUNK_WALKS
@@ -185,13 +198,14 @@ class Objective:
             # a noisy batch costs K walks a turn cycle: a large one (a shorter loop's
             # proposals) is scored in parts, so a deadline stops it within a fraction of a second
             step = max(1, NOISY_CHUNK_WALKS // self.starts)
-            return np.concatenate([self(pop[i:i + step]) for i in range(0, len(pop), step)])
+            return np.concatenate([self(pop[i:i + step], remember)
+                                   for i in range(0, len(pop), step)])
         left = self.remaining()
         if left is not None and not self.finish:
             if left < self.starts:
                 raise Exhausted
             pop = pop[: left // self.starts]
-        keys, scores = self._scorer.both(pop)
+        keys, scores = self._both(pop) if remember else self._scorer.both(pop)
         self.evaluations += len(pop) * self.starts
         if self.models is not None and len(scores):
             j = int(np.argmax(scores))
@@ -208,6 +222,27 @@ class Objective:
                                    self.fitness(self.best_search_score)))
         return keys
 
+
+    def _both(self, pop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The scorer's two scores of ``pop``, from :data:`_REMEMBERED` if an objective with
+        the same scores has scored this batch (a turn cycle's scores do not depend on the
+        batch it is in), else scored and kept there."""
+        if self._scores_key is None:  # the fingerprint, with the effects' exact parameters
+            effects = repr([(e.name, sorted(e.params.items())) for e in self.effects])
+            self._scores_key = self.fingerprint() + effects
+        genes = np.ascontiguousarray(pop, dtype=np.int64)
+        key = (self._scores_key, genes.shape, hashlib.sha1(genes.tobytes()).hexdigest())
+        with _REMEMBERED_LOCK:
+            found = _REMEMBERED.get(key)
+            if found is not None:
+                _REMEMBERED.move_to_end(key)
+        if found is None:
+            found = self._scorer.both(pop)
+            with _REMEMBERED_LOCK:
+                _REMEMBERED[key] = found
+                while len(_REMEMBERED) > _REMEMBERED_SIZE:
+                    _REMEMBERED.popitem(last=False)
+        return found[0].copy(), found[1].copy()
 
     def _offer(self, genes: np.ndarray, key: int) -> None:
         """Keep ``genes`` among the finalists if its search score is among the best kept

@@ -210,7 +210,7 @@ def starts_by_source(objective, sources: Sequence[Source], beam: int = BEAM,
                             length_cost)
     if not len(pop):
         return []
-    scores = objective(pop)
+    scores = objective(pop, remember=True)  # every chain on this model scores the same batch
     pop, owner = pop[: len(scores)], owner[: len(scores)]  # a budget may cut the batch
     best: dict[int, int] = {}
     for i, o in enumerate(owner.tolist()):
