@@ -48,7 +48,7 @@ NOISY_CHUNK_WALKS = 1 << 17
 # Batches scored with ``remember`` (a model's re-expressed library, which every chain of a
 # punctuation scores on the same objective), by the objective's scores and the batch: the
 # scores of the last few, so the next chain is charged the evaluations without walking them
-# again (a noisy punctuation's eight chains spent a third of their time on this).
+# again (a noisy punctuation's eight chains spent almost a third of their time on this).
 _REMEMBERED: OrderedDict = OrderedDict()
 _REMEMBERED_SIZE = 16
 _REMEMBERED_LOCK = threading.Lock()  # evolve searches in a worker thread while the robot walks
