@@ -11,9 +11,7 @@ reproducible (a budget in seconds is not).
 from __future__ import annotations
 
 import hashlib
-import threading
 import time
-from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -33,6 +31,7 @@ from pac_host.search.neighbours import (
     slots,
     value_indices,
 )
+from pac_host.search.recent import Recent
 from pac_host.search.shapes import Source, source_key, starts, starts_by_source
 from pac_host.search.shorten import CLIMBS, shorter_loops, shorter_windows
 
@@ -49,9 +48,7 @@ NOISY_CHUNK_WALKS = 1 << 17
 # punctuation scores on the same objective), by the objective's scores and the batch: the
 # scores of the last few, so the next chain is charged the evaluations without walking them
 # again (a noisy punctuation's eight chains spent almost a third of their time on this).
-_REMEMBERED: OrderedDict = OrderedDict()
-_REMEMBERED_SIZE = 16
-_REMEMBERED_LOCK = threading.Lock()  # evolve searches in a worker thread while the robot walks
+_REMEMBERED: Recent[tuple[np.ndarray, np.ndarray]] = Recent(16)
 
 
 class Exhausted(Exception):
@@ -232,16 +229,7 @@ class Objective:
             self._scores_key = self.fingerprint() + effects
         genes = np.ascontiguousarray(pop, dtype=np.int64)
         key = (self._scores_key, genes.shape, hashlib.sha1(genes.tobytes()).hexdigest())
-        with _REMEMBERED_LOCK:
-            found = _REMEMBERED.get(key)
-            if found is not None:
-                _REMEMBERED.move_to_end(key)
-        if found is None:
-            found = self._scorer.both(pop)
-            with _REMEMBERED_LOCK:
-                _REMEMBERED[key] = found
-                while len(_REMEMBERED) > _REMEMBERED_SIZE:
-                    _REMEMBERED.popitem(last=False)
+        found = _REMEMBERED.get(key, lambda: self._scorer.both(pop))
         return found[0].copy(), found[1].copy()
 
     def _offer(self, genes: np.ndarray, key: int) -> None:

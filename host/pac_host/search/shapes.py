@@ -25,7 +25,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +37,7 @@ from pac_host.model.effects import Effect
 from pac_host.model.table import BUILTIN, GaitTable, load_table
 from pac_host.search.kicks import loop_table
 from pac_host.search.neighbours import canonical
+from pac_host.search.recent import Recent
 from pac_host.search.retarget import BEAM, LENGTH_COST, retarget
 
 FORMAT = "pac-shapes/1"
@@ -147,9 +147,7 @@ def proposals(sources: Sequence[Source], target: np.ndarray, budget: int,
 # each re-express the library on the same corrected model, beside sources of their own, and the
 # beam is most of what a chain's start costs (0.12 s a model for the library; the evaluations
 # that score the proposals are still each chain's own)
-_MEMO: dict = {}
-_MEMO_SIZE = 64  # a model's library and every chain's own sources, with room to spare
-_MEMO_LOCK = threading.Lock()  # evolve searches in a worker thread while the robot walks
+_MEMO: Recent[np.ndarray] = Recent(64)  # a model's library and every chain's own sources
 
 
 def _proposals(sources: Sequence[Source], target: np.ndarray, budget: int, beam: int = BEAM,
@@ -171,15 +169,8 @@ def _retargeted(source: Source, target: np.ndarray, beam: int, length_cost: floa
     remembered for the last few sources, targets and settings; the caller must not change it
     (:func:`_proposals` only reads it)."""
     key = (source_key(source), source_key((np.zeros(0), target)), int(beam), float(length_cost))
-    with _MEMO_LOCK:
-        if key in _MEMO:
-            _MEMO[key] = _MEMO.pop(key)  # most recently used last
-        else:
-            if len(_MEMO) >= _MEMO_SIZE:
-                _MEMO.pop(next(iter(_MEMO)))
-            genes, moves = source
-            _MEMO[key] = retarget(genes, moves, target, beam, length_cost=length_cost)
-        return _MEMO[key]
+    genes, moves = source
+    return _MEMO.get(key, lambda: retarget(genes, moves, target, beam, length_cost=length_cost))
 
 
 def source_key(source: Source) -> str:
