@@ -23,6 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from pac_host.search import shapes
+
 PAC_HOST = Path(sys.executable).parent / "pac-host"
 TARGET, FINAL_TARGET, SHARE, MEDIAN_PUNCTUATIONS = 0.90, 0.95, 0.9, 5
 
@@ -32,10 +34,12 @@ def run(quick: bool = False, robot: str = "shifted", step_noise: str = "0.3,1",
     seeds = seeds or (2 if quick else 10)
     generations = generations or (200 if quick else 1000)
     with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "x"
+        out, library = Path(tmp) / "x", Path(tmp) / "library.json"
+        # the project's library less the sweeps found on the robot: a robot nobody has searched
+        library.write_text(json.dumps(shapes.load("builtin").without(robot).to_json()))
         cmd = [str(PAC_HOST), "experiment", "--actual", robot, "--step-noise", step_noise,
                "--seeds", str(seeds), "--generations", str(generations), "--methods",
-               "partial", "--jobs", "2", "--quiet", "--out", str(out)]
+               "partial", "--jobs", "2", "--quiet", "--shapes", str(library), "--out", str(out)]
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0

@@ -19,6 +19,8 @@ import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from pac_host.search import shapes
+
 PAC_HOST = Path(sys.executable).parent / "pac-host"
 LEVELS = {"0.3,1": 20.0, "0.15,0.5": 26.0}  # step noise -> target mean over fresh walks
 SHARE = 0.9  # of the seeds
@@ -28,7 +30,8 @@ def _one(level: str, seed: int, seconds: float, folder: Path) -> dict:
     out = folder / f"{level}-{seed}.json"
     subprocess.run([str(PAC_HOST), "optimize", "--table", "shifted", "--step-noise", level,
                     "--seconds", str(seconds), "--seed", str(seed), "--jobs", "1", "--quiet",
-                    "--json", str(out)], check=True, stdout=subprocess.DEVNULL)
+                    "--shapes", str(folder / "library.json"), "--json", str(out)],
+                   check=True, stdout=subprocess.DEVNULL)
     doc = json.loads(out.read_text())
     return {"seed": seed, "turn_cycle": doc["turn_cycle"], "fresh_mean": doc["fresh"]["mean"],
             "ci95": doc["fresh"]["ci95"], "walks": doc["fresh"]["walks"],
@@ -39,9 +42,12 @@ def run(quick: bool = False, seeds: int | None = None, seconds: float | None = N
     seeds = seeds or (2 if quick else 10)
     seconds = seconds or (20.0 if quick else 60.0)
     res: dict = {"command": f"pac-host optimize --table shifted --step-noise LEVEL --seconds "
-                            f"{seconds:g} --seed S --jobs 1", "seeds": seeds, "levels": {},
-                 "targets": {}}
+                            f"{seconds:g} --seed S --jobs 1 --shapes LIBRARY (the project's "
+                            "less the sweeps found on the shifted robot)", "seeds": seeds,
+                 "levels": {}, "targets": {}}
     with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(2) as pool:
+        (Path(tmp) / "library.json").write_text(
+            json.dumps(shapes.load("builtin").without("shifted").to_json()))
         for level, target in LEVELS.items():
             runs = list(pool.map(lambda s, lv=level: _one(lv, s, seconds, Path(tmp)),
                                  range(seeds)))

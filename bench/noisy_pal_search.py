@@ -8,9 +8,12 @@ Each punctuation's best turn cycle (the one PAL would test first) is measured by
 ``--judge-walks`` fresh noisy walks of the table (one fixed set for every punctuation and
 setting, drawn from seed 12345), so settings are compared on the same walks.
 
-Example (docs/explanation/learning.md, "PAL on a noisy robot"; about 5 minutes a seed at
-scale 4 on one core):
-``python bench/noisy_pal_search.py --robot shifted --step-noise 0.3,1 --seeds 0-3 --scale 4``
+The library is the project's less the robot's own sweeps (a robot nobody has searched) unless
+``--shapes`` names one; ``--sharp-only`` leaves out the robust sweeps, the starts a noise-free
+search gets.
+
+Example (docs/results.md, "Step noise"; about 2 minutes a seed at scale 2 on one core):
+``python bench/noisy_pal_search.py --robot shifted --step-noise 0.3,1 --seeds 0-3 --jobs 2``
 """
 
 from __future__ import annotations
@@ -18,9 +21,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -32,16 +37,18 @@ from pac_host.learning.config import PALConfig
 from pac_host.learning.state import initial_state
 from pac_host.model.best_known import builtin_table
 from pac_host.model.step_noise import parse_step_noise
+from pac_host.search import shapes
 
 JUDGE_SEED = 12345
 
 
 def one_seed(robot: str, level: str, seed: int, punctuations: int, scale: int, walks: int,
-             judge_walks: int) -> dict:
+             judge_walks: int, library: str) -> dict:
     """One seed's search: the judged mean of each punctuation's best, and its final sweep."""
     anytime_search.SEARCH_WALKS = walks  # this process's search walks (a worker's own copy)
     table, noise = builtin_table(robot), parse_step_noise(level)
-    cfg = replace(profiles.apply("default", PALConfig()), noisy_search_scale=scale)
+    cfg = replace(profiles.apply("default", PALConfig()), noisy_search_scale=scale,
+                  shapes=library)
     rng = np.random.default_rng(seed)
     state = initial_state(table, rng, cfg)
     state.step_noise = noise
@@ -76,11 +83,26 @@ def main() -> int:
     ap.add_argument("--walks", type=int, default=anytime_search.SEARCH_WALKS)
     ap.add_argument("--judge-walks", type=int, default=2000)
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--shapes", default=None,
+                    help="the library of good sweeps (default: the project's less the sweeps "
+                         "found on the robot)")
+    ap.add_argument("--sharp-only", action="store_true",
+                    help="leave out the library's robust sweeps (those found with step noise)")
     args = ap.parse_args()
-    jobs = [(args.robot, args.step_noise, s, args.punctuations, args.scale, args.walks,
-             args.judge_walks) for s in seeds_of(args.seeds)]
-    with ProcessPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(one_seed, *zip(*jobs, strict=True)))
+    with tempfile.TemporaryDirectory() as tmp:
+        library = args.shapes
+        if library is None or args.sharp_only:
+            chosen = (shapes.load(library) if library is not None  # the search on a robot
+                      else shapes.load("builtin").without(args.robot))  # nobody has searched
+            if args.sharp_only:
+                chosen = shapes.Library(tuple(s for s in chosen.shapes if s.step_noise is None),
+                                        chosen.folder)
+            library = str(Path(tmp) / "library.json")
+            Path(library).write_text(json.dumps(chosen.to_json()))
+        jobs = [(args.robot, args.step_noise, s, args.punctuations, args.scale, args.walks,
+                 args.judge_walks, library) for s in seeds_of(args.seeds)]
+        with ProcessPoolExecutor(args.jobs) as pool:
+            results = list(pool.map(one_seed, *zip(*jobs, strict=True)))
     finals = [r["means"][-1] for r in results]
     print(json.dumps({"robot": args.robot, "step_noise": args.step_noise, "scale": args.scale,
                       "walks": args.walks, "runs": results,

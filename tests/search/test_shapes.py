@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from pac_host.cli.main import main
-from pac_host.coverage import parse_turn_cycle, simulate
+from pac_host.coverage import format_turn_cycle, parse_turn_cycle, simulate
 from pac_host.learning import pal
 from pac_host.model import measured_table, robots, shifted_table
 from pac_host.model.kinematics import loop_moves
@@ -27,18 +27,51 @@ def _fitness(table, genes) -> np.ndarray:
                     table.effects).fitness
 
 
-@pytest.mark.parametrize("shape", LIB.shapes, ids=lambda s: f"{s.table}-{s.fitness}")
+SHARP = [s for s in LIB.shapes if s.step_noise is None]
+
+
+def _name(s: shapes.Shape) -> str:
+    return f"{s.table}-{s.fitness if s.step_noise is None else s.step_noise}"
+
+
+@pytest.mark.parametrize("shape", SHARP, ids=_name)
 def test_each_sweep_of_the_library_scores_as_recorded_on_its_table(shape):
     assert int(_fitness(shapes.table_of(shape.table), shape.genes)[0]) == shape.fitness
 
 
-@pytest.mark.parametrize("shape", LIB.shapes, ids=lambda s: f"{s.table}-{s.fitness}")
+@pytest.mark.parametrize("shape", LIB.shapes, ids=_name)
 def test_a_sweep_re_expressed_on_its_own_table_walks_the_same_loop(shape):
     table = shapes.table_of(shape.table)
     moves = loop_table(table.rows, table.effects)
     first = retarget(shape.genes, moves, moves)[0]
     assert np.allclose(loop_moves(first, moves), loop_moves(shape.genes, moves), atol=1e-9)
-    assert _fitness(table, first)[0] == shape.fitness
+    assert _fitness(table, first)[0] == _fitness(table, shape.genes)[0]
+
+
+def test_the_robust_best_knowns_are_starts_for_a_noisy_search_only():
+    """The library carries every robust record of the best knowns (found for a noisy robot,
+    on that robot); a noise-free search's sources are the sharp sweeps alone, in their order,
+    so its starts are what they were before there were robust sweeps."""
+    from pac_host.model import best_known
+
+    robust = [s for s in LIB.shapes if s.step_noise is not None]
+    records = {(name, rb["turn_cycle"], rb["step_noise"])
+               for name, rec in best_known.entries().items() for rb in rec.get("robust", [])}
+    assert records and {(s.found_on, format_turn_cycle(s.genes), s.step_noise)
+                        for s in robust} == records
+    sharp, noisy = LIB.sources(), LIB.sources(noisy=True)
+    assert len(sharp) == len(SHARP) and len(noisy) == len(LIB.shapes)
+    assert all(np.array_equal(a[0], s.genes) for a, s in zip(sharp, SHARP, strict=True))
+    assert all(s.found_on != "shifted" for s in LIB.without("shifted").shapes)
+
+
+def test_a_library_file_keeps_each_sweep_s_step_noise(tmp_path):
+    path = tmp_path / "lib.json"
+    path.write_text(json.dumps(LIB.without("measured").to_json()))
+    again = shapes.load(str(path))
+    assert [s.step_noise for s in again.shapes] == [s.step_noise for s in
+                                                    LIB.without("measured").shapes]
+    assert len(again.sources()) < len(again.sources(noisy=True))
 
 
 def test_a_turn_shift_is_a_relabelling_the_re_expression_undoes():
@@ -327,6 +360,8 @@ def test_the_oracle_with_the_library_reaches_the_robots_best_sooner(tmp_path):
      "shape 0"),
     ('{"format": "pac-shapes/1", "shapes": [{"turn_cycle": "1:2", "table": "nowhere.json"}]}',
      "shape 0"),
+    ('{"format": "pac-shapes/1", "shapes": [{"turn_cycle": "1:2", "table": "measured", '
+     '"step_noise": "lots"}]}', "shape 0: --step-noise takes CM,DEG"),
 ])
 def test_a_bad_shapes_file_is_one_line_and_exit_2(tmp_path, content, message):
     path = tmp_path / "shapes.json"

@@ -98,19 +98,21 @@ class _AnytimeSearch:
 
         library = shapes.load(self.cfg.shapes)
 
+        noise = noise if self.cfg.search_noise else None
+
         def sources(*found: np.ndarray) -> tuple[list, list]:
-            """The library's sources of starts, and the turn cycles found on the model before
-            (as sources: the library's too unless ``cfg.library_restarts``); none without a
-            library."""
+            """The library's sources of starts (its robust sweeps too for a noisy search), and
+            the turn cycles found on the model before (as sources: the library's too unless
+            ``cfg.library_restarts``); none without a library."""
             if not library.shapes:
                 return [], []
             carried = [shapes.carried(x, self.state.models[0], self.state.model_effects)
                        for x in found]
+            own = library.sources(noisy=noise is not None)
             if self.cfg.library_restarts:
-                return library.sources(), carried
-            return library.sources() + carried, []
+                return own, carried
+            return own + carried, []
 
-        noise = noise if self.cfg.search_noise else None
         seed = self._walks_seed(noise)
         walks = search_walks(noise, seed, self.cfg)
         rank, _ = _ranking(models, self.pop, self.cfg, effects, noise, seed)

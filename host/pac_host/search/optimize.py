@@ -166,7 +166,8 @@ def run_chain(rows: np.ndarray, effects: tuple[Effect, ...], cfg: OptimizeConfig
     interrupted = False
     try:
         restarts(objective, rng, cfg.patience, cfg.kick_genes, sample=cfg.sample,
-                 shapes=shapes.load(cfg.shapes).sources(), length_cost=cfg.kick_length_cost,
+                 shapes=shapes.load(cfg.shapes).sources(noisy=cfg.noisy()),
+                 length_cost=cfg.kick_length_cost,
                  shorten_after=cfg.shorten_after, windows=cfg.shorten_windows)
     except KeyboardInterrupt:  # Ctrl-C: the chain ends with the best found so far
         interrupted = True

@@ -6,8 +6,12 @@ need not start from nothing: the sweeps found on other tables, re-expressed on t
 short CGA run. The library is a ``pac-shapes/1`` file: each sweep's turn cycle, the table it
 was found on (a built-in table or robot name, or a ``pac-gait-table/1`` file beside the library)
 and its fitness there. ``builtin`` is the project's (``shapes.json``): the best turn cycles
-known on the built-in tables and robots. A chain also carries its own best from the model it
-had before (:func:`carried`).
+known on the built-in tables and robots, and the robust records of
+:mod:`pac_host.model.best_known` (the best mean fitness known on each robot with step noise). A
+sweep found for a noisy robot (its ``step_noise`` given) is a start only for a noisy search
+(:meth:`Library.sources`): a noise-free search starts from the sharp sweeps alone, as before
+there were robust ones. A chain also carries its own best from the model it had before
+(:func:`carried`).
 
 >>> lib = load("builtin")
 >>> len(lib.without("shifted").shapes) < len(lib.shapes)
@@ -33,7 +37,9 @@ import numpy as np
 
 from pac_host.coverage import format_turn_cycle, parse_turn_cycle
 from pac_host.errors import InputError
+from pac_host.model import best_known
 from pac_host.model.effects import Effect
+from pac_host.model.step_noise import parse_step_noise
 from pac_host.model.table import BUILTIN, GaitTable, load_table
 from pac_host.search.kicks import loop_table
 from pac_host.search.neighbours import canonical
@@ -56,6 +62,7 @@ class Shape:
     table: str
     fitness: int | None
     found_on: str
+    step_noise: str | None = None  # the step noise it was found for (``CM,DEG``); None: none
 
 
 @dataclass(frozen=True)
@@ -68,14 +75,18 @@ class Library:
         on one nobody has searched)."""
         return Library(tuple(s for s in self.shapes if s.found_on != robot), self.folder)
 
-    def sources(self) -> list[Source]:
-        """Each sweep with its table's moves (:func:`pac_host.search.kicks.loop_table`)."""
-        return [(s.genes, _moves(s.table, self.folder)) for s in self.shapes]
+    def sources(self, noisy: bool = False) -> list[Source]:
+        """Each sweep with its table's moves (:func:`pac_host.search.kicks.loop_table`): for a
+        ``noisy`` search every sweep, else only those found without step noise."""
+        return [(s.genes, _moves(s.table, self.folder)) for s in self.shapes
+                if noisy or s.step_noise is None]
 
     def to_json(self) -> dict:
         return {"format": FORMAT, "shapes": [
             {"turn_cycle": format_turn_cycle(s.genes), "table": s.table, "fitness": s.fitness,
-             "found_on": s.found_on} for s in self.shapes]}
+             "found_on": s.found_on,
+             **({} if s.step_noise is None else {"step_noise": s.step_noise})}
+            for s in self.shapes]}
 
 
 def table_of(name: str, folder: Path | None = None) -> GaitTable:
@@ -122,12 +133,25 @@ def load(spec: str) -> Library:
             raise InputError(f"{spec}: shape {k} needs turn_cycle and table ({exc})") from None
         except InputError as exc:
             raise InputError(f"{spec}: shape {k}: {exc}") from None
+        step_noise = item.get("step_noise")
         try:
             _moves(table, folder)
+            if step_noise is not None and parse_step_noise(str(step_noise)).is_zero():
+                step_noise = None
         except InputError as exc:
             raise InputError(f"{spec}: shape {k}: {exc}") from None
-        shapes.append(Shape(genes, table, fitness, found_on))
+        shapes.append(Shape(genes, table, fitness, found_on,
+                            None if step_noise is None else str(step_noise)))
+    if spec == "builtin":
+        shapes += _robust_records()
     return Library(tuple(shapes), folder)
+
+
+def _robust_records() -> list[Shape]:
+    """The robust best knowns (:func:`pac_host.model.best_known.entries`) as sweeps found
+    for noisy robots, each on the robot it was found on."""
+    return [Shape(parse_turn_cycle(rb["turn_cycle"]), name, None, name, rb["step_noise"])
+            for name, rec in best_known.entries().items() for rb in rec.get("robust", [])]
 
 
 def carried(genes: np.ndarray, rows: np.ndarray, effects: Sequence[Effect] = ()) -> Source:
