@@ -86,6 +86,26 @@ def test_one_lucky_walk_does_not_beat_six_but_a_clear_gap_does():
     assert operational.decide("b", exact, ["op"]) == (None, None)
 
 
+
+def test_a_lucky_operational_sweep_is_walked_again_until_fresh_walks_confirm_it():
+    """Made operational on three walks that beat the rest, it is the luckiest of its tests:
+    while a challenger is not clearly worse it is walked again, up to CONFIRM_WALKS walks."""
+    n = operational.CONFIRM_WALKS
+
+    def est(op_walks: list[int], challenger: float) -> dict:
+        return {"op": operational.estimate(op_walks, 24.0, 6.0, 0.0, error_var=4.0),
+                "new": operational.estimate([challenger], 24.0, 6.0, 0.0, error_var=4.0)}
+
+    close = est([32, 32, 33], 25.0)
+    assert close["op"].mean > close["new"].mean  # no challenger higher ...
+    assert operational.decide("op", close, ["new"], operational.TRACKED_Z) == (None, "op")
+    confirmed = est([32, 32, 33] + [26] * (n - 3), 25.0)
+    assert operational.decide("op", confirmed, ["new"], operational.TRACKED_Z) == (None, None)
+    clearly_worse = est([32, 32, 33], 2.0)
+    assert operational.decide("op", clearly_worse, ["new"], operational.TRACKED_Z) == (None,
+                                                                                      None)
+
+
 class LuckyRobot:
     """Walks every test with step noise; its fitness is 10 on the operational turn cycle and
     45 on any other (each a single lucky walk)."""
@@ -200,7 +220,7 @@ def test_a_model_whose_predictions_hold_decides_and_one_that_misses_does_not():
     """The model's weight is learnt from its track record: predictions that have held let a
     challenger the model expects to cover 6 more replace the operational turn cycle on one
     poor walk; the same walks against a model that has missed by 10 either way leave the
-    decision to the walks (the challenger's one walk is worse: kept)."""
+    decision to the walks (the challenger's one walk is worse: kept, and walked again)."""
     rng = np.random.default_rng(3)
     good = operational.model_error_var(*_track(0.0, rng))
     bad = operational.model_error_var(*_track(10.0, rng))
@@ -213,5 +233,6 @@ def test_a_model_whose_predictions_hold_decides_and_one_that_misses_does_not():
         return operational.decide("op", est, ["new"])
 
     assert decided(good)[0] == "new"
-    assert decided(bad) == (None, None)
+    # kept, and walked again: it has four walks and the challenger is not clearly worse
+    assert decided(bad) == (None, "op")
     assert decided(None)[0] is None  # no track record yet: one walk's worth, not enough

@@ -13,7 +13,10 @@ many walks, one that has missed counts as few; before :data:`MIN_TRACK` turn cyc
 walked it counts as one walk at most (less where its population disagrees). A challenger
 replaces the operational turn cycle only when its estimate is higher by more than
 :data:`DECISION_Z` standard errors of the difference; higher but not by that much, the one
-known less well is walked again at the next punctuation (:func:`decide`). Without step noise
+known less well is walked again at the next punctuation, and with no challenger higher but one
+not clearly lower, the operational one until it has :data:`CONFIRM_WALKS` walks
+(:func:`decide`): a turn cycle made operational by its walks is the luckiest of those tested
+until fresh walks say otherwise. Without step noise
 a walk is exact and the rule is the paper's: the higher walk wins.
 
 >>> e = estimate([45], predicted=15.0, walk_sd=10.0, model_sd=0.0)
@@ -46,6 +49,12 @@ MIN_TRACK = 3  # walked turn cycles before the model's track record sets its wei
 # was not confirmed in 14 punctuations at 0.3 cm / 1 deg: docs/results.md)
 DECISION_Z = 1.645
 TRACKED_Z = 1.0
+# an operational turn cycle is walked again while a challenger is not clearly worse, until it
+# has this many walks: it became operational on walks that beat the others', so its early mean
+# is the lucky one, and a walk's fitness is skewed (a sweep of mean 24 walks 32 or more three
+# times in ten): on the noisy shifted robot a run held a sweep of 22 for 20 punctuations on
+# three walks that averaged 28 (docs/explanation/learning.md, "PAL on a noisy robot")
+CONFIRM_WALKS = 8
 
 
 @dataclass(frozen=True)
@@ -162,11 +171,14 @@ def decide(operational: str | None, estimates: dict[str, Estimate],
     ``operational`` one (None: none yet, the best challenger is taken). It replaces only when
     higher by more than ``z`` standard errors of the difference (:data:`DECISION_Z`, or
     :data:`TRACKED_Z` once the model's weight comes from its track record); higher by less,
-    the one of the two with the larger standard error is walked again.
+    the one of the two with the larger standard error is walked again; lower by less, the
+    operational one, while it has fewer than :data:`CONFIRM_WALKS` walks.
 
     >>> est = {"a": Estimate(15.0, 1.0, 6), "b": Estimate(20.0, 6.0, 1)}
     >>> decide("a", est, ["b"]), decide("a", {**est, "b": Estimate(25.0, 2.0, 3)}, ["b"])
     ((None, 'b'), ('b', None))
+    >>> decide("a", {"a": Estimate(26.0, 2.0, 3), "b": Estimate(25.0, 2.0, 2)}, ["b"])
+    (None, 'a')
     """
     others = [c for c in challengers if c != operational]
     if not others:
@@ -180,4 +192,6 @@ def decide(operational: str | None, estimates: dict[str, Estimate],
         return best, None
     if gap > 0:
         return None, best if c.sd > o.sd else operational
+    if gap > -z * math.hypot(o.sd, c.sd) and o.walks < CONFIRM_WALKS:
+        return None, operational
     return None, None

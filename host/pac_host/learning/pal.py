@@ -158,10 +158,10 @@ def punctuate(
         op_score, op_fit = state.operational_score, state.operational_fitness
     walks = _walked(state, tests, results)
     noise_fit = _step_noise(state, tests, results, cfg)
-    estimates, repeat = {}, None
+    estimates, repeat, error_var = {}, None, None
     if cfg.operational_evidence and noise_fit is not None and noise_fit.clear():
         # a noisy robot: every walk and the model's prediction decide, not the last walk
-        operational, op_score, op_fit, replaced, repeat, estimates = _by_evidence(
+        operational, op_score, op_fit, replaced, repeat, estimates, error_var = _by_evidence(
             state, tests, results, walks, noise_fit.noise, rng, cfg)
     op_walks = walks.get(operational_rule.key(operational), (op_fit,))
 
@@ -203,6 +203,8 @@ def punctuate(
     if estimates:
         record["test_estimates"] = [estimates[operational_rule.key(t)].to_json() for t in tests]
         record["repeat"] = None if repeat is None else operational_rule.key(repeat)
+        # the model's prediction error learnt from its track record (None: not yet)
+        record["model_error_sd"] = None if error_var is None else round(error_var**0.5, 3)
     pop, carried = state.cga_pop, state.search
     # search_noise: the step noise the search walks the model with (clear estimates only)
     noise = (noise_fit.noise if cfg.search_noise and noise_fit is not None and noise_fit.clear()
@@ -296,7 +298,8 @@ def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
                  cfg: PALConfig):
     """The operational turn cycle chosen on all its walks and the model's prediction with the
     estimated step ``noise`` (:mod:`pac_host.learning.operational`): (operational, its score,
-    its last walk's fitness, replaced, the turn cycle to walk again or None, the estimates)."""
+    its last walk's fitness, replaced, the turn cycle to walk again or None, the estimates,
+    the model's error variance from its track record or None)."""
     tested = range(len(tests)) if cfg.operational == "tested" else range(1)
     keys = [operational_rule.key(tests[i]) for i in tested]
     op_key = None if state.operational_score is None else operational_rule.key(state.operational)
@@ -330,11 +333,11 @@ def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
     if chosen is not None:
         i = list(tested)[keys.index(chosen)]
         return (tests[i].copy(), results[i].score, results[i].fitness, True, repeat,
-                estimates)
+                estimates, error_var)
     walked = [i for i in range(len(tests)) if operational_rule.key(tests[i]) == op_key]
     score = results[walked[-1]].score if walked else state.operational_score
     last = walks.get(op_key, (state.operational_fitness,))[-1]
-    return (state.operational, score, last, False, repeat, estimates)
+    return (state.operational, score, last, False, repeat, estimates, error_var)
 
 
 def _logged_estimate(operational: np.ndarray, walks: Sequence[int],
