@@ -144,7 +144,7 @@ def measure(robot_names, methods, seeds: int, out_root: Path, generations: int =
                 # library without the sweeps found on this one
                 d.mkdir(parents=True, exist_ok=True)
                 lib = d / "shapes.json"
-                lib.write_text(json.dumps(shapes.load(pcfg.shapes).without(rname).to_json()))
+                shapes.load(pcfg.shapes).without(rname).save(lib)
                 pcfg = replace(pcfg, shapes=str(lib))
             log = d / "log.jsonl"
             recorded = (learning_records.record_path(rname, mname, records)

@@ -34,8 +34,13 @@ import numpy as np
 
 from pac_host.coverage import DEFAULT_BUDGET, parse_turn_cycle
 from pac_host.coverage.walks import walk_many
-from pac_host.experiments.experiment import FINAL_TARGET, TARGET, punctuations_to
-from pac_host.model import best_known as known_records
+from pac_host.experiments.experiment import (
+    FINAL_TARGET,
+    TARGET,
+    ExperimentConfig,
+    best_known_on,
+    punctuations_to,
+)
 from pac_host.model import load_with_effects
 from pac_host.search import shapes
 
@@ -50,17 +55,14 @@ def seed_list(text: str | int) -> list[int]:
 
 
 def best_known(robot: str, step_noise: str, given: float | None) -> dict:
-    """The robot's robust record at the noise (if any) or ``given``, whichever is higher."""
-    found = known_records.robust_for_table(load_with_effects(robot, (), step_noise),
-                                           DEFAULT_BUDGET)
-    built_in = None if found is None else {"robot": found[0], **found[1]}
-    cands = [(given, "given")] if given is not None else []
-    if built_in is not None:
-        cands.insert(0, (built_in["mean"], "built-in"))  # a tie: the record
-    if not cands:
+    """The robot's robust record at the noise (if any) or ``given``, whichever is higher, as
+    an experiment judges its runs (:func:`pac_host.experiments.experiment.best_known_on`,
+    with no optimum of its own)."""
+    best = best_known_on(load_with_effects(robot, (), step_noise),
+                         ExperimentConfig(best_known=given), optimum=0.0)
+    if best["used"] == "optimum":
         raise SystemExit(f"no robust record for {robot} at {step_noise}: give --best-known")
-    fitness, used = max(cands, key=lambda c: c[0])
-    return {"fitness": fitness, "used": used, "built_in": built_in, "given": given}
+    return best
 
 
 def expected_coverage(robot: str, step_noise: str):
@@ -98,7 +100,7 @@ def run(quick: bool = False, robot: str = "shifted", step_noise: str = "0.3,1",
     with tempfile.TemporaryDirectory() as tmp:
         out, library = Path(tmp), Path(tmp) / "library.json"
         # the project's library less the sweeps found on the robot: a robot nobody has searched
-        library.write_text(json.dumps(shapes.load("builtin").without(robot).to_json()))
+        shapes.load("builtin").without(robot).save(library)
         base = [str(PAC_HOST), "evolve", *(["--sim-table", robot] if robot != "shifted" else []),
                 "--sim-step-noise", step_noise, "--generations", str(generations), "--quiet",
                 "--shapes", str(library)]

@@ -36,7 +36,7 @@ def run(quick: bool = False, robot: str = "shifted", step_noise: str = "0.3,1",
     with tempfile.TemporaryDirectory() as tmp:
         out, library = Path(tmp) / "x", Path(tmp) / "library.json"
         # the project's library less the sweeps found on the robot: a robot nobody has searched
-        library.write_text(json.dumps(shapes.load("builtin").without(robot).to_json()))
+        shapes.load("builtin").without(robot).save(library)
         cmd = [str(PAC_HOST), "experiment", "--actual", robot, "--step-noise", step_noise,
                "--seeds", str(seeds), "--generations", str(generations), "--methods",
                "partial", "--jobs", "2", "--quiet", "--shapes", str(library), "--out", str(out)]

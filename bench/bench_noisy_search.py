@@ -46,8 +46,7 @@ def run(quick: bool = False, seeds: int | None = None, seconds: float | None = N
                             "less the sweeps found on the shifted robot)", "seeds": seeds,
                  "levels": {}, "targets": {}}
     with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(2) as pool:
-        (Path(tmp) / "library.json").write_text(
-            json.dumps(shapes.load("builtin").without("shifted").to_json()))
+        shapes.load("builtin").without("shifted").save(Path(tmp) / "library.json")
         for level, target in LEVELS.items():
             runs = list(pool.map(lambda s, lv=level: _one(lv, s, seconds, Path(tmp)),
                                  range(seeds)))

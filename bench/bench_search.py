@@ -101,7 +101,7 @@ def library_runs(seeds: int, evaluations: int, jobs: int = 2) -> dict:
     with tempfile.TemporaryDirectory() as d, ProcessPoolExecutor(jobs) as pool:
         for label, robot, table in library_targets():
             lib = Path(d) / f"{robot}.json"
-            lib.write_text(json.dumps(shapes.load("builtin").without(robot).to_json()))
+            shapes.load("builtin").without(robot).save(lib)
             runs = {name: list(pool.map(_library_run, [(table, spec, k, evaluations)
                                                         for k in range(seeds)]))
                     for name, spec in (("without", "none"), ("library", str(lib)))}
@@ -161,7 +161,7 @@ def experiment(quick: bool, best_known: int) -> dict:
     seeds, gens = (2, 120) if quick else (30, 1000)
     with tempfile.TemporaryDirectory() as d:
         lib = Path(d) / "shapes.json"
-        lib.write_text(json.dumps(shapes.load("builtin").without("shifted").to_json()))
+        shapes.load("builtin").without("shifted").save(lib)
         out = Path(d) / "out"
         cmd = [sys.executable, "-m", "pac_host.cli", "experiment", "--seeds", str(seeds),
                "--generations", str(gens), "--methods", "partial,oracle", "--jobs", "2",

@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> dict:
                  f"{len(parents)}")
     lib = args.out.with_suffix(".shapes.json")
     lib.parent.mkdir(parents=True, exist_ok=True)
-    lib.write_text(json.dumps(shapes.load("builtin").without(args.robot).to_json()))
+    shapes.load("builtin").without(args.robot).save(lib)
     found = {}
     for budget in budgets:
         for k in kicks:

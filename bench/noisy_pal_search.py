@@ -94,11 +94,8 @@ def main() -> int:
         if library is None or args.sharp_only:
             chosen = (shapes.load(library) if library is not None  # the search on a robot
                       else shapes.load("builtin").without(args.robot))  # nobody has searched
-            if args.sharp_only:
-                chosen = shapes.Library(tuple(s for s in chosen.shapes if s.step_noise is None),
-                                        chosen.folder)
-            library = str(Path(tmp) / "library.json")
-            Path(library).write_text(json.dumps(chosen.to_json()))
+            chosen = chosen.sharp() if args.sharp_only else chosen
+            library = str(chosen.save(Path(tmp) / "library.json"))
         jobs = [(args.robot, args.step_noise, s, args.punctuations, args.scale, args.walks,
                  args.judge_walks, library) for s in seeds_of(args.seeds)]
         with ProcessPoolExecutor(args.jobs) as pool:

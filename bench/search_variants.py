@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> dict:
     jobs = []
     for robot in names:
         lib = args.out.parent / f"{args.out.stem}.{robot}.shapes.json"
-        lib.write_text(json.dumps(shapes.load("builtin").without(robot).to_json()))
+        shapes.load("builtin").without(robot).save(lib)
         jobs += [(robot, str(lib), args.chains, args.evaluations, s, c, k, w)
                  for c, k, w in variants for s in seeds]
     with ProcessPoolExecutor(max_workers=args.jobs) as ex:

@@ -37,6 +37,7 @@ import numpy as np
 
 from pac_host.coverage import format_turn_cycle, parse_turn_cycle
 from pac_host.errors import InputError
+from pac_host.files import write_atomic
 from pac_host.model import best_known
 from pac_host.model.effects import Effect
 from pac_host.model.step_noise import parse_step_noise
@@ -75,11 +76,20 @@ class Library:
         on one nobody has searched)."""
         return Library(tuple(s for s in self.shapes if s.found_on != robot), self.folder)
 
+    def sharp(self) -> Library:
+        """The library less the sweeps found for a noisy robot: a noise-free search's starts."""
+        return Library(tuple(s for s in self.shapes if s.step_noise is None), self.folder)
+
     def sources(self, noisy: bool = False) -> list[Source]:
         """Each sweep with its table's moves (:func:`pac_host.search.kicks.loop_table`): for a
-        ``noisy`` search every sweep, else only those found without step noise."""
-        return [(s.genes, _moves(s.table, self.folder)) for s in self.shapes
-                if noisy or s.step_noise is None]
+        ``noisy`` search every sweep, else only the :meth:`sharp` ones."""
+        return [(s.genes, _moves(s.table, self.folder))
+                for s in (self if noisy else self.sharp()).shapes]
+
+    def save(self, path: str | Path) -> Path:
+        """Write the library as a ``pac-shapes/1`` file (whole or not at all); its path."""
+        write_atomic(path, json.dumps(self.to_json()))
+        return Path(path)
 
     def to_json(self) -> dict:
         return {"format": FORMAT, "shapes": [
