@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -158,11 +158,13 @@ def punctuate(
         op_score, op_fit = state.operational_score, state.operational_fitness
     walks = _walked(state, tests, results)
     noise_fit = _step_noise(state, tests, results, cfg)
-    estimates, repeat, error_var = {}, None, None
+    choice = _Choice(operational, op_score, op_fit, replaced)
     if cfg.operational_evidence and noise_fit is not None and noise_fit.clear():
         # a noisy robot: every walk and the model's prediction decide, not the last walk
-        operational, op_score, op_fit, replaced, repeat, estimates, error_var = _by_evidence(
-            state, tests, results, walks, noise_fit.noise, rng, cfg)
+        choice = _by_evidence(state, tests, results, walks, noise_fit.noise, rng, cfg)
+    operational, op_score, op_fit, replaced = (choice.operational, choice.score,
+                                               choice.fitness, choice.replaced)
+    estimates, repeat, error_var = choice.estimates, choice.repeat, choice.error_var
     op_walks = walks.get(operational_rule.key(operational), (op_fit,))
 
     if cfg.correction == "fit":
@@ -293,13 +295,25 @@ class KnownStepNoise:
         return {"known": self.noise.to_json(), "clear": self.clear()}
 
 
+@dataclass(frozen=True)
+class _Choice:
+    """A punctuation's operational turn cycle and what decided it."""
+
+    operational: np.ndarray
+    score: float | None  # its test score (the last walk's)
+    fitness: int  # its last walk's fitness
+    replaced: bool
+    repeat: np.ndarray | None = None  # the turn cycle to walk again, if a decision needs it
+    estimates: dict[str, operational_rule.Estimate] = field(default_factory=dict)
+    error_var: float | None = None  # the model's error variance from its track record
+
+
 def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
                  walks: dict[str, tuple[int, ...]], noise, rng: np.random.Generator,
-                 cfg: PALConfig):
+                 cfg: PALConfig) -> _Choice:
     """The operational turn cycle chosen on all its walks and the model's prediction with the
-    estimated step ``noise`` (:mod:`pac_host.learning.operational`): (operational, its score,
-    its last walk's fitness, replaced, the turn cycle to walk again or None, the estimates,
-    the model's error variance from its track record or None)."""
+    estimated step ``noise`` (:mod:`pac_host.learning.operational`), a test to walk again where
+    the decision needs it, and the model's error variance from its track record."""
     tested = range(len(tests)) if cfg.operational == "tested" else range(1)
     keys = [operational_rule.key(tests[i]) for i in tested]
     op_key = None if state.operational_score is None else operational_rule.key(state.operational)
@@ -332,12 +346,12 @@ def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
         repeat = state.operational if again == op_key else tests[keys.index(again)].copy()
     if chosen is not None:
         i = list(tested)[keys.index(chosen)]
-        return (tests[i].copy(), results[i].score, results[i].fitness, True, repeat,
-                estimates, error_var)
+        return _Choice(tests[i].copy(), results[i].score, results[i].fitness, True, repeat,
+                       estimates, error_var)
     walked = [i for i in range(len(tests)) if operational_rule.key(tests[i]) == op_key]
     score = results[walked[-1]].score if walked else state.operational_score
     last = walks.get(op_key, (state.operational_fitness,))[-1]
-    return (state.operational, score, last, False, repeat, estimates, error_var)
+    return _Choice(state.operational, score, last, False, repeat, estimates, error_var)
 
 
 def _logged_estimate(operational: np.ndarray, walks: Sequence[int],
