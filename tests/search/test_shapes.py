@@ -74,6 +74,26 @@ def test_a_library_file_keeps_each_sweep_s_step_noise(tmp_path):
     assert all(s.step_noise is None for s in again.sharp().shapes)
 
 
+def test_a_library_saved_elsewhere_still_finds_the_table_files_beside_the_first(tmp_path):
+    """A user's library names a table file beside it; the library written into another
+    folder (a subset of it, say) names that file from there, so it loads with the same
+    moves."""
+    from pac_host.model.table import save_table
+
+    (tmp_path / "lab").mkdir()
+    save_table(measured_table(), tmp_path / "lab" / "ours.json")
+    genes = SHARP[0].genes
+    (tmp_path / "lab" / "lib.json").write_text(json.dumps({"format": shapes.FORMAT, "shapes": [
+        {"turn_cycle": format_turn_cycle(genes), "table": "ours.json", "fitness": None},
+        {"turn_cycle": format_turn_cycle(genes), "table": "shifted", "fitness": None}]}))
+    first = shapes.load(str(tmp_path / "lab" / "lib.json"))
+    (tmp_path / "elsewhere").mkdir()
+    moved = shapes.load(str(first.save(tmp_path / "elsewhere" / "lib.json")))
+    assert [s.table for s in moved.shapes][1] == "shifted"
+    for a, b in zip(first.sources(), moved.sources(), strict=True):
+        np.testing.assert_array_equal(a[1], b[1])
+
+
 def test_a_turn_shift_is_a_relabelling_the_re_expression_undoes():
     """The shifted robot's rows are the measured table's one strength weaker: a sweep found on
     the one is the same path on the other with other gait ids."""

@@ -29,6 +29,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -87,13 +88,30 @@ class Library:
                 for s in (self if noisy else self.sharp()).shapes]
 
     def save(self, path: str | Path) -> Path:
-        """Write the library as a ``pac-shapes/1`` file (whole or not at all); its path."""
-        write_atomic(path, json.dumps(self.to_json()))
+        """Write the library as a ``pac-shapes/1`` file (whole or not at all); its path. Table
+        files the shapes name are named from the new file's folder, so it loads anywhere."""
+        folder = Path(path).resolve().parent
+        write_atomic(path, json.dumps(self.to_json(lambda name: self._table_from(name,
+                                                                                   folder))))
         return Path(path)
 
-    def to_json(self) -> dict:
+    def _table_from(self, name: str, folder: Path) -> str:
+        """A shape's table as named from ``folder``: a built-in name as it is, a file by its
+        path relative to ``folder`` (absolute where there is none, e.g. another drive)."""
+        from pac_host.model import robots
+
+        if name in BUILTIN or name in robots.ROBOTS:
+            return name
+        src = (Path(name) if self.folder is None else self.folder / name).resolve()
+        try:
+            return os.path.relpath(src, folder)
+        except ValueError:
+            return str(src)
+
+    def to_json(self, table_name=lambda name: name) -> dict:
         return {"format": FORMAT, "shapes": [
-            {"turn_cycle": format_turn_cycle(s.genes), "table": s.table, "fitness": s.fitness,
+            {"turn_cycle": format_turn_cycle(s.genes), "table": table_name(s.table),
+             "fitness": s.fitness,
              "found_on": s.found_on,
              **({} if s.step_noise is None else {"step_noise": s.step_noise})}
             for s in self.shapes]}
