@@ -403,6 +403,65 @@ def estimate_noise(batch: Batch, residuals: np.ndarray | None = None) -> NoiseFl
                       int(batch.mask.sum()), False)
 
 
+def _period(ids: np.ndarray) -> int | None:
+    """The shortest period of a run's gait cycles (a turn cycle walked in a loop), if the run
+    holds at least three periods."""
+    n = len(ids)
+    for length in range(1, n // 3 + 1):
+        if np.array_equal(ids[length:], ids[:-length]):
+            return length
+    return None
+
+
+def loop_heading_noise(runs: Sequence[Run], var_h: float, var_h_se: float
+                       ) -> tuple[float, float] | None:
+    """The step noise variance of dH (deg^2) and its standard error from whole loops of the
+    turn cycle each run walks: (estimate, se), or None when no run holds four loops.
+
+    A robot that repeats its moves turns by the same amount over every loop of its turn cycle,
+    whatever its table and sequence effects; step noise adds ``L q_h^2`` to each loop of L gait
+    cycles, and that sum over a loop stands far clearer above the tracker's ``sigma_h`` than a
+    single step's ``q_h^2`` does (a repeated-steps stretch is often too short to show it: 0.5
+    deg under 1 deg of tracker noise was not clear after 4000 steps). Third differences across
+    loops, ``h[i+3L] - 3 h[i+2L] + 3 h[i+L] - h[i]`` at every phase i, cancel every move the
+    robot repeats and a drift growing linearly over the run (``battery_sag``); their expected
+    square is ``6 L q_h^2 + 20 sigma_h^2``. ``var_h`` (the tracker's sigma_h^2, from the
+    repeated steps) and its standard error ``var_h_se`` are taken as given and their error
+    carried into the result's; the loops' own part is a jackknife over runs.
+    """
+    num, den, count = [], [], []
+    for r in runs:
+        length = _period(np.asarray(r.gait_cycles))
+        if length is None:
+            continue
+        h = r.poses[:, 2]
+        ok = np.isfinite(h)
+        h = np.degrees(np.unwrap(np.radians(np.where(ok, h, 0.0))))
+        i = np.arange(length - 1, len(h) - 3 * length)  # the first loop's end on: observed
+        if len(i) == 0:
+            continue
+        third = h[i + 3 * length] - 3 * h[i + 2 * length] + 3 * h[i + length] - h[i]
+        good = ok[i] & ok[i + length] & ok[i + 2 * length] & ok[i + 3 * length]
+        if not good.any():
+            continue
+        num.append(float((third[good] ** 2).sum()))
+        den.append(6.0 * length * int(good.sum()))
+        count.append(int(good.sum()))
+    if not num:
+        return None
+    num_a, den_a, n_a = np.array(num), np.array(den), np.array(count)
+    est = (num_a.sum() - 20.0 * var_h * n_a.sum()) / den_a.sum()
+    k = len(num_a)
+    if k < 3:
+        return None
+    jack = np.array([(num_a.sum() - num_a[j] - 20.0 * var_h * (n_a.sum() - n_a[j]))
+                     / (den_a.sum() - den_a[j]) for j in range(k)])
+    se_loops = np.sqrt((k - 1) / k * ((jack - jack.mean()) ** 2).sum())
+    se_tracker = 20.0 * n_a.sum() / den_a.sum() * var_h_se
+    se = float(np.hypot(se_loops, se_tracker)) if np.isfinite(var_h_se) else np.inf
+    return float(est), se if se > 0 else np.inf
+
+
 Z95 = 1.959964  # the two-sided 95% normal quantile
 MIN_STEP_CM = 0.01  # step noise below these moves no path off a block: taken as none
 MIN_STEP_DEG = 0.05
@@ -452,7 +511,10 @@ def estimate_step_noise(runs: Sequence[Run], start_observed: bool = False
                         ) -> StepNoiseFit | None:
     """The robot's step noise from observed runs: :func:`estimate_noise`'s moments of repeated
     identical steps (which tell the tracker's noise, shared by consecutive steps, from the
-    robot's own, independent per step), without its keep-or-drop test, with a 95% interval.
+    robot's own, independent per step), without its keep-or-drop test, with a 95% interval;
+    for dH combined (by inverse variance) with :func:`loop_heading_noise`, the heading noise
+    summed over whole loops of each run's turn cycle, which a tracker noisier than the robot
+    hides far less.
 
     No model is needed: within a stretch of one gait cycle repeated every table and sequence
     effect moves the robot alike, and a model's residuals would count its row errors as noise.
@@ -477,9 +539,18 @@ def estimate_step_noise(runs: Sequence[Run], start_observed: bool = False
     segs = segments(batch)
     if not segs:
         return None
-    (_, qh, _, qp), se = _fit_with_errors(_moments(batch, segs))
+    (var_h, qh, _, qp), se = _fit_with_errors(_moments(batch, segs))
+    se_h = se[1]
+    loops = loop_heading_noise(runs, var_h, se[0])
+    if loops is not None and np.isfinite(se_h) and se_h > 0:
+        # the steps' and the loops' estimates of dH's variance, by inverse variance
+        w = np.array([1.0 / se_h**2, 1.0 / loops[1] ** 2])
+        qh, se_h = float(w @ [qh, loops[0]] / w.sum()), float(1.0 / np.sqrt(w.sum()))
+    elif loops is not None:
+        qh, se_h = loops
+    qh = max(qh, 0.0)
     var = np.array([qp, qp, qh])
-    var_se = np.array([se[3], se[3], se[1]])
+    var_se = np.array([se[3], se[3], se_h])
     lo = np.sqrt(np.clip(var - Z95 * var_se, 0.0, None))
     hi = np.sqrt(np.clip(var + Z95 * var_se, 0.0, None))
     return StepNoiseFit(np.sqrt(var), var_se, np.stack([lo, hi], axis=1),
