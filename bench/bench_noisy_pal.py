@@ -9,9 +9,10 @@ median of at most 5 punctuations, and ends at 95% or more on at least 9 of 10 se
 shifted robot and others, at 0.3 cm / 1 deg and 0.15 cm / 0.5 deg.
 
 Usage: ``python bench/bench_noisy_pal.py [--robot shifted|FILE] [--step-noise 0.3,1]
-[--seeds 10] [--generations 1000]`` or ``python bench/run.py --only noisy_pal`` (the shifted
-robot at 0.3 cm / 1 deg, 10 seeds of 25 punctuations, two runs at a time: about 25 minutes on
-two cores; ``--quick``: 2 seeds of 5 punctuations).
+[--seeds 10] [--generations 1000] [--profile paper]`` or ``python bench/run.py --only
+noisy_pal`` (the shifted robot at 0.3 cm / 1 deg, 10 seeds of 25 punctuations, two runs at a
+time: about 10 minutes on two cores; ``--quick``: 2 seeds of 5 punctuations). ``--profile
+paper`` runs the paper's method (no library) on the same robot, to compare.
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ TARGET, FINAL_TARGET, SHARE, MEDIAN_PUNCTUATIONS = 0.90, 0.95, 0.9, 5
 
 
 def run(quick: bool = False, robot: str = "shifted", step_noise: str = "0.3,1",
-        seeds: int | None = None, generations: int | None = None) -> dict:
+        seeds: int | None = None, generations: int | None = None,
+        profile: str = "default") -> dict:
     seeds = seeds or (2 if quick else 10)
     generations = generations or (200 if quick else 1000)
     with tempfile.TemporaryDirectory() as tmp:
@@ -39,7 +41,9 @@ def run(quick: bool = False, robot: str = "shifted", step_noise: str = "0.3,1",
         shapes.load("builtin").without(robot).save(library)
         cmd = [str(PAC_HOST), "experiment", "--actual", robot, "--step-noise", step_noise,
                "--seeds", str(seeds), "--generations", str(generations), "--methods",
-               "partial", "--jobs", "2", "--quiet", "--shapes", str(library), "--out", str(out)]
+               "partial", "--jobs", "2", "--quiet", "--out", str(out)]
+        # the paper's method as the paper ran it (no library), beside the default
+        cmd[-2:-2] = ["--profile", "paper"] if profile == "paper" else ["--shapes", str(library)]
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0
@@ -74,6 +78,8 @@ if __name__ == "__main__":
     ap.add_argument("--step-noise", default="0.3,1")
     ap.add_argument("--seeds", type=int, default=None)
     ap.add_argument("--generations", type=int, default=None)
+    ap.add_argument("--profile", choices=("default", "paper"), default="default")
     ap.add_argument("--quick", action="store_true")
     a = ap.parse_args()
-    print(json.dumps(run(a.quick, a.robot, a.step_noise, a.seeds, a.generations), indent=1))
+    print(json.dumps(run(a.quick, a.robot, a.step_noise, a.seeds, a.generations, a.profile),
+                     indent=1))
