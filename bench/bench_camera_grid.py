@@ -34,7 +34,7 @@ Targets (issue 63), on every setting whose calibration was not refused: median p
 reported more than 2 cm or 5 deg off; no calibration accepted without a warning whose true
 floor error exceeds 1 cm RMS. A refusal (with its reason) is an allowed outcome.
 
-Usage: ``python bench/run.py --only camera_grid`` (24 settings x 30 gait cycles: about 4
+Usage: ``python bench/run.py --only camera_grid`` (24 settings x 30 gait cycles: about 3
 minutes on one core); ``--quick``: 4 settings x 10 gait cycles. This file run alone takes
 ``--windows N``, ``--only-setting NAME`` (repeatable) and ``--quick``.
 """

@@ -45,18 +45,18 @@ def test_render_calibrate_check_on_files(tmp_path):
     assert cv2.imread(str(png)).shape == (480, 640, 3)
 
     res = _invoke("camera", "sheets", "--out", tmp_path / "sheets")
-    assert res.exit_code == 0 and "12 A4 pages" in res.output, res.output
+    assert res.exit_code == 0 and "24 A4 pages" in res.output, res.output
     pdf = (tmp_path / "sheets" / "markers.pdf").read_bytes()
-    assert pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages") == 12
+    assert pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages") == 24
 
     # bad input: too few floor markers, a file of the wrong kind, a camera that is not there
     few = tmp_path / "few"
     few.mkdir()
     img = cv2.imread(str(d / "floor" / "000.png"), cv2.IMREAD_GRAYSCALE)
-    img[:, 200:] = 150  # only the near end's markers stay in view
+    img[:, 100:] = 150  # only the near end's two markers stay in view
     cv2.imwrite(str(few / "0.png"), img)
     _one_error_line(_invoke("camera", "calibrate", "--floor", few, "--out", tmp_path / "c2.json"),
-                    2, "of the 10 floor markers seen")
+                    2, "of the 22 floor markers seen")
     assert not (tmp_path / "c2.json").exists()
     table = tmp_path / "table.json"
     assert _invoke("table", "export", table).exit_code == 0

@@ -196,7 +196,7 @@ def test_the_plan_for_a_long_area_from_the_field_of_view_and_the_height():
     # every camera sees at least 4 floor markers whole (to calibrate it), their ids one 4x4
     # dictionary's
     layout = plan.layout()
-    assert plan.markers_seen(layout) >= 4 and len(layout.floor) == 30
+    assert plan.markers_seen(layout) >= 4 and len(layout.floor) == 70
     for c in cams:
         inside = [m for m in layout.floor if np.all(
             (c.project(np.array([[m.x + dx, m.y + dy, 0.0] for dx in (-8, 8)
@@ -226,7 +226,7 @@ def test_camera_layout_writes_the_layout_the_calibration_reads(tmp_path):
                                     str(tmp_path)])
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "layout.json").read_text())
-    assert doc["watched"] == [0.0, 180.0, 0.0, 600.0] and len(doc["floor"]) == 2 * 9
+    assert doc["watched"] == [0.0, 180.0, 0.0, 600.0] and len(doc["floor"]) == 2 * 21
     assert (tmp_path / "floor_plan.png").stat().st_size > 0
     res = CliRunner().invoke(main, ["camera", "layout", "--height", "40"])
     assert res.exit_code == 2 and "hang the cameras higher" in res.output

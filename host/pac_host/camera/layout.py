@@ -20,7 +20,9 @@ DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_4X4_1000")
 BOARD_DICTIONARY = "DICT_5X5_100"  # the lens board's own ids, never mistaken for floor markers
 AREA_X = (0.0, 180.0)
 AREA_Y = (0.0, 300.0)  # the part of the (upward unbounded) area a camera is set up to see
-MARKER_SPACING = 75.0  # cm between the floor markers' rows (at most)
+# cm between the floor markers' rows (at most): the markers define the floor frame, and the
+# more of them, the better their hand-laying errors average out
+MARKER_SPACING = 30.0
 
 
 def dictionary(name: str) -> cv2.aruco.Dictionary:
@@ -62,7 +64,7 @@ class Board:
 def default_floor(size: float = 12.0, margin: float = 10.0, y_range=AREA_Y,
                   spacing: float = MARKER_SPACING) -> tuple[FloorMarker, ...]:
     """Markers just outside the area's long sides, in rows at most ``spacing`` cm apart from
-    ``y_range``'s start to its end (ten, every 75 cm from y = 0 to 300, by default): the robot
+    ``y_range``'s start to its end (22, every 30 cm from y = 0 to 300, by default): the robot
     never covers them and a camera that sees the area sees them."""
     xs = (AREA_X[0] - margin - size / 2, AREA_X[1] + margin + size / 2)
     ys = np.linspace(y_range[0], y_range[1], int(np.ceil((y_range[1] - y_range[0]) / spacing

@@ -144,8 +144,9 @@ class RigPlan:
 
     def layout(self) -> Layout:
         """The floor markers for this rig: beside the area's long sides (the robot never
-        covers them), rows every 75 cm at most, when one row of cameras along the area sees
-        them; else on a lattice over the watched floor, 2.5 to a camera's narrower view."""
+        covers them), rows :data:`MARKER_SPACING` apart at most, when one row of cameras
+        along the area sees them; else on a lattice over the watched floor, 2.5 to a camera's
+        narrower view."""
         size = 12.0
         if len(self.xs) == 1 and self.sees_beside(size):
             floor = default_floor(size, SIDE_MARGIN, self.watched[2:], MARKER_SPACING)
