@@ -23,11 +23,13 @@ those 24 settings so that each pair of lens and tilt, and each lens and resoluti
 several.
 
 Per setting: the calibration's outcome (``accepted``, ``warned`` with its warnings, or
-``refused`` with its one-line reason), its floor error (the corners' RMS it reports, and the
-true error of its floor at the robot marker's height over a 10 cm grid of the area where the
-marker is in view: RMS and max), the position and heading errors of the poses taken (median,
-95th percentile, max), and the windows that gave no pose at the first look and the gait cycles
-not seen after the observer's retries (gaps).
+``refused`` with its one-line reason), its floor error (the corners' RMS it reports, its error
+map's median forecast, ``expected_cm``, and the true error of its floor at the robot marker's
+height over a 10 cm grid of the area where the marker is in view: RMS and max), the position
+and heading errors of the poses taken (median, 95th percentile, max), and the windows that gave
+no pose at the first look and the gait cycles not seen after the observer's retries (gaps).
+Over the runs: the outcomes, the position medians within 0.3 cm and the worst
+(``position_median_cm``), and the forecast over the true floor error (``forecast_over_true``).
 
 Targets (issue 63), on every setting whose calibration was not refused: median position error
 <= 0.3 cm and heading error <= 0.3 deg, 95th percentiles <= 0.6 cm and 1 deg; no pose
@@ -36,7 +38,11 @@ floor error exceeds 1 cm RMS. A refusal (with its reason) is an allowed outcome.
 
 Usage: ``python bench/run.py --only camera_grid`` (24 settings x 30 gait cycles: about 3
 minutes on one core); ``--quick``: 4 settings x 10 gait cycles. This file run alone takes
-``--windows N``, ``--only-setting NAME`` (repeatable) and ``--quick``.
+``--windows N`` (gait cycles per setting), ``--only-setting NAME`` (repeatable), ``--quick``,
+``--spacing CM`` (the floor layout's rows at most this far apart: 30 by default, 22 markers;
+37.5 lays 18, 75 lays 10) and ``--laying-seed N`` (which draw of each setting's hand-laying:
+0, the default, is the setting's own; repeatable, each draw a run of every setting), e.g.
+``python bench/bench_camera_grid.py --windows 15 --laying-seed 1 --laying-seed 2 --spacing 75``.
 """
 
 from __future__ import annotations
@@ -49,7 +55,15 @@ from bench_camera_degraded import observe_walk
 
 from pac_host.camera.calibrate import Calibration, calibrate_floor, calibrate_lens
 from pac_host.camera.geometry import Camera
-from pac_host.camera.layout import AREA_X, AREA_Y, Board, Layout, RobotMarker
+from pac_host.camera.layout import (
+    AREA_X,
+    AREA_Y,
+    MARKER_SPACING,
+    Board,
+    Layout,
+    RobotMarker,
+    default_floor,
+)
 from pac_host.camera.observer import CameraOptions
 from pac_host.camera.quality import radial_folds
 from pac_host.camera.render import Imaging, Printing, Renderer, board_poses, random_walk
@@ -197,22 +211,30 @@ def judge(r: dict) -> dict:
             "no_silent_bad_floor": not silent}
 
 
-def setting(s: dict, windows: int) -> dict:
-    """One setting calibrated and watched."""
+def laying_seed(s: dict, draw: int) -> int:
+    """The seed of a setting's ``draw``-th hand-laying of the floor markers (0: its own)."""
+    return s["seed"] + 1000 * draw
+
+
+def setting(s: dict, windows: int, spacing: float = MARKER_SPACING, draw: int = 0) -> dict:
+    """One setting calibrated and watched: the floor markers in rows at most ``spacing`` cm
+    apart, laid by the setting's ``draw``-th hand (0: its own)."""
     t0 = time.process_time()
     dist = LENSES[s["k1"]]
     cam = grid_camera(s["size"], s["height"], s["tilt"], dist)
     fov = float(np.degrees(2 * np.arctan(cam.size[0] / 2 / cam.K[0, 0])))
     marker = suggest_marker_size(cam.size, s["height"], fov, RobotMarker().height)
-    layout = Layout(robot=RobotMarker(size=marker, plate=marker + 4))
+    layout = Layout(floor=default_floor(spacing=spacing),
+                    robot=RobotMarker(size=marker, plate=marker + 4))
     renderer = Renderer(cam, layout, Imaging(jpeg=s["jpeg"], seed=s["seed"], **IMAGING),
-                        Printing(seed=s["seed"], **PRINTING))
+                        Printing(seed=laying_seed(s, draw), **PRINTING))
     rng = np.random.default_rng([s["seed"], 0])
     cal, outcome = calibrate(renderer, rng)
     out = {"camera": {"size": list(s["size"]), "height_cm": s["height"], "tilt_deg": s["tilt"],
                       "dist": list(dist), "fov_deg": round(fov, 1), "jpeg": s["jpeg"],
                       "folds": bool(radial_folds(cam.K, cam.dist, cam.size))},
-           "marker_cm": marker, "calibration": outcome}
+           "marker_cm": marker, "floor_markers_laid": len(layout.floor),
+           "laying_draw": draw, "calibration": outcome}
     if cal is not None:
         out["floor_true_cm"] = true_floor_error(cal, cam, layout.robot.height)
         out["poses"] = observe(renderer, cal, windows, s["seed"])
@@ -222,15 +244,22 @@ def setting(s: dict, windows: int) -> dict:
 
 
 def run(quick: bool = False, windows: int | None = None,
-        only: Sequence[str] | None = None) -> dict:
+        only: Sequence[str] | None = None, spacing: float = MARKER_SPACING,
+        draws: Sequence[int] = (0,)) -> dict:
+    """Every setting (``only``: these; ``quick``: 4) once for each draw of its hand-laying in
+    ``draws`` (a run named ``NAME`` for draw 0, ``NAME laying N`` for draw N), its floor
+    markers in rows at most ``spacing`` cm apart."""
     grid = settings()
     if only:
         grid = [s for s in grid if s["name"] in only]
     elif quick:
         grid = grid[::7]
     n = windows or (10 if quick else WINDOWS)
-    res = {s["name"]: setting(s, n) for s in grid}
+    res = {s["name"] + (f" laying {d}" if d else ""): setting(s, n, spacing, d)
+           for d in draws for s in grid}
     judged = [r["met"] for r in res.values() if not r["met"].get("refused")]
+    medians = [r["poses"]["position_cm"]["median"] for r in res.values()
+               if r.get("poses", {}).get("position_cm")]
 
     def every(key: str) -> bool:
         return all(m.get(key, False) for m in judged)
@@ -239,8 +268,19 @@ def run(quick: bool = False, windows: int | None = None,
         return f"{sum(m.get(key, False) for m in judged)} of {len(judged)}"
 
     outcomes = [r["calibration"]["outcome"] for r in res.values()]
-    return {"windows": n, "settings": res,
+    forecast = [(r["calibration"]["expected_cm"], r["floor_true_cm"]["rms"])
+                for r in res.values() if r["calibration"].get("expected_cm") is not None]
+    return {"windows": n, "spacing_cm": spacing, "laying_draws": list(draws), "settings": res,
             "outcomes": {k: outcomes.count(k) for k in ("accepted", "warned", "refused")},
+            "position_median_cm": {
+                "within_0.3": f"{sum(m <= TARGETS['median_cm'] for m in medians)} of "
+                              f"{len(medians)}",
+                "worst": max(medians, default=None)},
+            "forecast_over_true": {  # the error map's median against the true floor error
+                "median": round(float(np.median([f / t for f, t in forecast])), 2)
+                if forecast else None,
+                "range": [round(min(f / t for f, t in forecast), 2),
+                          round(max(f / t for f, t in forecast), 2)] if forecast else None},
             "targets": {
                 "median_0.3cm_0.3deg": {"value": count("median"), "target": "every setting",
                                         "met": every("median")},
@@ -264,5 +304,13 @@ if __name__ == "__main__":
     ap.add_argument("--only-setting", action="append", dest="only", metavar="NAME",
                     help="run only this setting, e.g. k1=-0.25/tilt=20/640x480 (repeatable)")
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--spacing", type=float, default=MARKER_SPACING, metavar="CM",
+                    help=f"the floor markers' rows at most CM apart (default "
+                         f"{MARKER_SPACING:g}: 22 markers)")
+    ap.add_argument("--laying-seed", type=int, action="append", dest="draws", metavar="N",
+                    help="the draw of each setting's hand-laying (default 0, the setting's "
+                         "own; repeatable: a run of every setting for each)")
     a = ap.parse_args()
-    print(json.dumps(run(a.quick, a.windows, a.only), indent=1))
+    if not a.spacing > 0:
+        ap.error("--spacing must be > 0")
+    print(json.dumps(run(a.quick, a.windows, a.only, a.spacing, a.draws or (0,)), indent=1))

@@ -555,7 +555,10 @@ def calibrate_corners(obs: Corners, size: tuple[int, int], layout: Layout = DEFA
     d = np.hypot(res[:, 0], res[:, 1])
     back = cv2.perspectiveTransform(floor.reshape(-1, 1, 2), np.linalg.inv(H)).reshape(-1, 2)
     rms_px = float(np.sqrt(((back - ideal) ** 2).sum(1).mean()))
-    off = np.hypot(*res.reshape(-1, 4, 2).mean(axis=1).T)  # each marker's centre
+    # a smooth misfit of the camera's model (beyond what chance explains), and each marker's
+    # own offset from its place: its corners' mean residual, less that misfit where it counts
+    model = q.smooth_misfit(ideal, floor, res, 8 if lens is None else 6, size, free)
+    off = np.hypot(*q.marker_offsets(model["residuals"] if model["cm"] > 0 else res).T)
     err = {"rms": round(float(np.sqrt((d ** 2).mean())), 4), "max": round(float(d.max()), 4),
            "markers": ids, "frames": n, "print_scale": round(scale, 4),
            "worst_marker": [ids[int(np.argmax(off))], round(float(off.max()), 4)]}
@@ -580,15 +583,56 @@ def calibrate_corners(obs: Corners, size: tuple[int, int], layout: Layout = DEFA
         checks.append(q.lens_floor_check(res, loose))
     q.refuse(checks)
     cal = Calibration(size, layout, H, pose["center"], lens, err)
-    # what the corners' noise explains of the floor's fit (the board's corners fit as well
-    # as this camera finds corners); the rest is a model error that stays between the markers
-    noise_cm = lens.error_px * cm_per_px if lens is not None else 0.0
-    misfit = math.sqrt(max(err["rms"] ** 2 - noise_cm ** 2, 0.0))
-    emap = q.pose_error_map(cal, q.homography_covariance(H, ideal, floor),
-                            _center_sigma(pose, camera_height), max(rms_px, 0.05), misfit)
-    checks.append(q.map_check(emap))
+    # the forecast: the fitted floor's uncertainty (each marker's corners erring together),
+    # the robot marker's corners as noisy as this camera finds the lens board's (without a
+    # lens, as the floor markers' corners scatter about their own marker), and a smooth misfit
+    # of the camera's model beyond chance
+    noise_px = lens.error_px if lens is not None else _corner_noise_px(res, floor, obs, ids,
+                                                                      known)
+    emap = q.pose_error_map(cal, floor_covariance(H, ideal, floor, pose, lens),
+                            _center_sigma(pose, camera_height), max(noise_px, 0.05),
+                            model["cm"])
+    checks.append(q.map_check(emap, lens is not None))
     q.refuse(checks)
     return replace(cal, checks=tuple(checks), error_map=emap)
+
+
+def floor_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray, pose: dict,
+                     lens: Lens | None) -> np.ndarray:
+    """The covariance (8, 8) of the fitted floor's homography parameters, each marker's
+    corners erring together (:func:`quality.cluster_covariance`): with a lens, of the camera's
+    pose (6 parameters, fitted on the corners' pixels), carried to the homography; without,
+    of the free homography (8, fitted on the floor)."""
+    if lens is None:
+        p0 = q._h_params(H)
+
+        def res(p):
+            return (cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), q._h_of(p)).reshape(-1, 2)
+                    - floor).ravel()
+
+        return q.cluster_covariance(q._jacobian(res, p0), res(p0))
+    K = lens.K
+    theta = np.concatenate([cv2.Rodrigues(pose["R"])[0].ravel(), np.ravel(pose["t"])])
+    obj = np.column_stack([floor, np.zeros(len(floor))])
+    px, jac = cv2.projectPoints(obj, theta[:3], theta[3:], K, None)
+    cov = q.cluster_covariance(jac[:, :6], (px.reshape(-1, 2) - ideal).ravel())
+
+    def h_of(th):
+        return q._h_params(pose_homography(K, cv2.Rodrigues(th[:3])[0], th[3:]))
+
+    Jh = q._jacobian(h_of, theta)
+    return Jh @ cov @ Jh.T
+
+
+def _corner_noise_px(res: np.ndarray, floor: np.ndarray, obs: Corners, ids: Sequence[int],
+                     known: dict) -> float:
+    """The floor markers' corners' noise (pixels, sd per axis): their residuals about their
+    own marker's shift and turn (:func:`quality.within_marker_noise`), through each marker's
+    cm per pixel."""
+    rem = q.within_marker_noise(res, floor).reshape(-1, 4, 2)
+    cm_px = np.array([known[i].size / np.linalg.norm(obs[i] - np.roll(obs[i], 1, axis=0),
+                                                     axis=1).mean() for i in ids])
+    return float(np.sqrt(((rem / cm_px[:, None, None]) ** 2).sum() / (5 * len(ids))))
 
 
 def _center_sigma(pose: dict, given: float | None) -> np.ndarray:

@@ -21,7 +21,12 @@ from pac_host.errors import InputError
 
 # (warn above, fail above)
 LENS_RMS_PX = (0.5, 1.0)  # the board corners' reprojection error
-FLOOR_RMS_CM = (0.5, 1.0)  # the floor markers' corners through the homography
+FLOOR_RMS_CM = 1.0  # refused above: the floor markers' corners through the fitted floor
+# warned above: a floor marker seen this far (cm) from its place in the layout; laid by hand
+# within a couple of millimetres as the how-to says, none is
+MARKER_OFF_CM = 1.0
+# the expected position error over the area (the error map), median: (warn above, fail above)
+MAP_CM = (0.5, 1.0)
 HEIGHT_GIVEN = (0.03, 0.10)  # the fitted height against --camera-height, relative
 ASPECT = (0.02, 0.10)  # fx / fy against 1 (square pixels)
 PRINCIPAL = (0.10, 0.25)  # the principal point's offset from the centre, share of the size
@@ -37,6 +42,9 @@ HEIGHT_CM = (30.0, 1000.0)  # the lens above the floor
 BOARD_COVERAGE = 0.25  # warn when the board's corners span less of the image than this
 GIVEN_HEIGHT_SIGMA = 0.03  # a given height's assumed accuracy when nothing checks it
 MAP_STEP_CM = 20.0
+# a smooth misfit of the camera's model counts in the error map when chance (the markers'
+# laying) gives as much less often than this
+SMOOTH_MISFIT_P = 0.01
 
 LENS_ADVICE = "calibrate the lens with --lens (10-20 board images that cover the view)"
 BOARD_ADVICE = ("take the board images again: flat board, sharp images, spanning a third to "
@@ -174,23 +182,33 @@ def lens_size_check(lens_size: tuple[int, int] | None, size: tuple[int, int]) ->
 
 def floor_check(rms_cm: float, max_cm: float, rms_px: float | None, has_lens: bool,
                 worst: tuple[int, float] | None = None) -> dict:
-    """The floor markers' corners through the fitted floor; ``worst``: the marker whose
-    centre the fit puts farthest from its place in the layout (id, cm), named when the fit
-    is not ok (a marker laid off its place, or a wrong place in the layout)."""
-    status = grade(rms_cm, FLOOR_RMS_CM)
+    """The floor markers' corners through the fitted floor. Refused when they fit to more
+    than FLOOR_RMS_CM RMS: the camera's model does not fit them (a lens not calibrated) or
+    markers lie far from their places. Warned when a marker is seen more than MARKER_OFF_CM
+    from its place in the layout (``worst``: the marker farthest from its place, id and cm;
+    laid off its place, or a wrong place in the layout): lay it again. A marker's own
+    misplacement is no error between the markers; what it moves the floor is in the error
+    map's forecast."""
+    status = grade(rms_cm, (FLOOR_RMS_CM, FLOOR_RMS_CM))
+    if status == "ok" and worst is not None and worst[1] > MARKER_OFF_CM:
+        status = "warn"
     text = (f"floor: the markers' corners fit to {rms_cm:.2f} cm RMS ({max_cm:.2f} cm max"
             + (f", {rms_px:.2f} px RMS)" if rms_px is not None else ")"))
-    if worst is not None and status != "ok":
+    if worst is not None:
         text += (f"; marker {worst[0]} is seen {worst[1]:.2f} cm from its place in the "
-                 "layout")
+                 "layout, the farthest")
     if status == "warn":
-        text += (f"; poses between the markers are off by as much ({FLOOR_RMS_CM[0]:g} cm or "
-                 "less expected)")
+        text += (f" (more than {MARKER_OFF_CM:g} cm: laid off its place, or a wrong place in "
+                 "the layout?)")
     elif status == "fail":
-        text += f"; poses would be off by as much (more than {FLOOR_RMS_CM[1]:g} cm is refused)"
-    advice = (LENS_ADVICE if not has_lens else
-              "check that the floor markers lie flat where the layout puts them and that the "
-              "lens file is this camera's")
+        text += (f"; more than {FLOOR_RMS_CM:g} cm RMS is refused: the camera's model does not "
+                 "fit the floor, or markers lie far from their places")
+    far = worst is not None and worst[1] > MARKER_OFF_CM
+    advice = "; ".join(
+        ([f"lay marker {worst[0]} again where the layout puts it"] if far else [])
+        + ([] if status != "fail" else [LENS_ADVICE] if not has_lens else
+           ["check that the floor markers lie flat where the layout puts them and that the "
+            "lens file is this camera's"]))
     return check("floor_error", status, text, advice)
 
 
@@ -388,14 +406,106 @@ def homography_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray,
     return cov
 
 
+def cluster_covariance(J: np.ndarray, r: np.ndarray, group: int = 4) -> np.ndarray:
+    """The covariance of a least-squares fit's parameters (``J``: d residuals / d parameters
+    at the fit, (n, p); ``r``: its residuals, n = 2 x points) when the points come in groups
+    of ``group`` that err together: a floor marker's corners, laid off its place as one. The
+    sandwich (J^T J)^-1 (sum over groups of J_g^T r_g r_g^T J_g) (J^T J)^-1 with the
+    small-sample factor G / (G - 1) (n - 1) / (n - p): each marker's laying counts once,
+    however many corners it has, and a marker far off its place widens it as much as it
+    pulls the fit. With too few groups to tell (G <= p + 2), the residuals' variance times
+    their design effect."""
+    n, p = J.shape
+    rows = 2 * group
+    B = np.linalg.pinv(J.T @ J)
+    dof = max(n - p, 1)
+    if n % rows or n // rows <= p + 2:
+        cov = float(r @ r) / dof * B
+        if n % rows == 0 and r @ r > 0:
+            sums = r.reshape(-1, group, 2).sum(axis=1)
+            cov *= max(float((sums ** 2).sum() / (r @ r)), 1.0)
+        return cov
+    g = (J * r[:, None]).reshape(-1, rows, p).sum(axis=1)
+    G = len(g)
+    return G / (G - 1) * (n - 1) / dof * (B @ (g.T @ g) @ B)
+
+
+def marker_offsets(res: np.ndarray, group: int = 4) -> np.ndarray:
+    """Each floor marker's offset from its place as the fit sees it (cm, (markers, 2)): the
+    mean of its corners' residuals (``res``, (n, 2), ``group`` corners a marker)."""
+    return res.reshape(-1, group, 2).mean(axis=1)
+
+
+def within_marker_noise(res: np.ndarray, floor: np.ndarray, group: int = 4) -> np.ndarray:
+    """The corners' residuals (cm, (n, 2); their floor places ``floor``, ``group`` corners a
+    marker) less each marker's own shift and turn: what no laying explains (the corners'
+    noise), 2 x group - 3 degrees of freedom a marker."""
+    r = res.reshape(-1, group, 2)
+    o = floor.reshape(-1, group, 2)
+    o = o - o.mean(axis=1, keepdims=True)
+    r = r - r.mean(axis=1, keepdims=True)
+    perp = np.stack([-o[..., 1], o[..., 0]], axis=-1)
+    turn = (perp * r).sum(axis=(1, 2)) / np.maximum((o ** 2).sum(axis=(1, 2)), 1e-12)
+    return (r - turn[:, None, None] * perp).reshape(-1, 2)
+
+
+def smooth_misfit(ideal: np.ndarray, floor: np.ndarray, res: np.ndarray, params: int,
+                  size: tuple[int, int], start: np.ndarray, group: int = 4) -> dict:
+    """The part of the floor's misfit that a smooth error of the camera's model explains
+    beyond chance: what a richer model (a free homography after a radial distortion about the
+    image's centre, 10 parameters; ``start``: a free homography to begin from) takes out of
+    the corners' residuals ``res`` (cm, (n, 2); the fitted model's, ``params`` parameters)
+    beyond what chance takes out with as many more parameters (the markers' laying, each
+    marker's corners erring together: their design effect). Such an error lies between the
+    markers as much as on them, unlike each marker's own misplacement. ``cm``: its RMS over
+    the corners (cm), counted when chance gives as much less often than SMOOTH_MISFIT_P (``p``:
+    how often it does); ``rms_rich_cm``, ``residuals``: the richer model's fit."""
+    from scipy.optimize import least_squares
+    from scipy.stats import f as f_dist
+
+    w, h = size
+    c0 = np.array([(w - 1) / 2, (h - 1) / 2])
+    reach = float(np.hypot(w, h) / 2)
+    u = (ideal - c0) / reach
+    rho2 = (u ** 2).sum(axis=1, keepdims=True)
+
+    def resid(x):
+        bent = c0 + (ideal - c0) * (1 + x[8] * rho2 + x[9] * rho2 ** 2)
+        return (cv2.perspectiveTransform(bent.reshape(-1, 1, 2), _h_of(x[:8])).reshape(-1, 2)
+                - floor).ravel()
+
+    x0 = np.append(_h_params(start), [0.0, 0.0])
+    fit = least_squares(resid, x0, method="lm", x_scale="jac")
+    rich = fit.x if fit.cost < 0.5 * float(resid(x0) @ resid(x0)) else x0
+    r = resid(rich)
+    rss, rss_rich = float((res ** 2).sum()), float(r @ r)
+    extra = 10 - params
+    dof = len(r) - 10
+    out = {"cm": 0.0, "rms_rich_cm": round(math.sqrt(rss_rich / len(floor)), 4),
+           "residuals": r.reshape(-1, 2)}
+    if dof <= 0 or rss_rich <= 0 or extra <= 0:
+        return out
+    sums = r.reshape(-1, group, 2).sum(axis=1) if len(floor) % group == 0 else r.reshape(-1, 2)
+    deff = max(float((sums ** 2).sum()) / rss_rich, 1.0)
+    chance = extra * deff * rss_rich / dof  # what chance takes out, on average
+    p = float(f_dist.sf((rss - rss_rich) / chance, extra, dof))
+    out["p"] = p
+    if p < SMOOTH_MISFIT_P:
+        out["cm"] = round(math.sqrt(max(rss - rss_rich - chance, 0.0) / len(floor)), 4)
+    return out
+
+
 def pose_error_map(cal, cov: np.ndarray, center_sigma: np.ndarray, noise_px: float,
-                   misfit_cm: float = 0.0, step: float = MAP_STEP_CM) -> dict:
+                   model_cm: float = 0.0, step: float = MAP_STEP_CM) -> dict:
     """The position error (cm, RMS) to expect for the robot's marker centred at each point of
-    a grid over the watched floor (the layout's), at its height: the homography's
-    uncertainty (``cov``, from its fit), the noise of the marker's corners (``noise_px`` per
-    corner, through the local cm per pixel), the parallax error of the camera centre's
-    uncertainty (``center_sigma``, cm, per axis), and ``misfit_cm`` everywhere (what no model
-    corrects). None where the marker is out of view."""
+    a grid over the watched floor (the layout's), at its height: the fitted floor's
+    uncertainty (``cov``, the homography's parameters' covariance from its fit: the markers'
+    laying averaged over them, :func:`cluster_covariance`), the noise of the marker's corners
+    (``noise_px`` per corner, through the local cm per pixel), the parallax error of the
+    camera centre's uncertainty (``center_sigma``, cm, per axis), and ``model_cm`` everywhere
+    (a smooth misfit of the camera's model, :func:`smooth_misfit`, which no fit corrects).
+    Each marker's own misplacement is not an error between the markers: only what it moves
+    the fit counts. None where the marker is out of view."""
     marker = cal.layout.robot
     hm, c = marker.height, cal.center
     x0, x1, y0, y1 = cal.layout.watched
@@ -432,7 +542,7 @@ def pose_error_map(cal, cov: np.ndarray, center_sigma: np.ndarray, noise_px: flo
     s = np.asarray(center_sigma, dtype=np.float64)
     par = hm / c[2] * np.sqrt(s[0] ** 2 + s[1] ** 2
                               + (np.hypot(*(f - c[:2]).T) * s[2] / c[2]) ** 2)
-    total = np.sqrt(fit ** 2 + detect ** 2 + par ** 2 + misfit_cm ** 2)
+    total = np.sqrt(fit ** 2 + detect ** 2 + par ** 2 + model_cm ** 2)
     total = np.where(seen, total, np.nan).reshape(gy.shape)
     vals = total[np.isfinite(total)]
     worst = np.unravel_index(np.nanargmax(total), total.shape) if len(vals) else None
@@ -440,22 +550,42 @@ def pose_error_map(cal, cov: np.ndarray, center_sigma: np.ndarray, noise_px: flo
             "error_cm": [[None if not np.isfinite(v) else round(float(v), 3) for v in row]
                          for row in total],
             "marker_height_cm": hm, "noise_px": round(float(noise_px), 4),
+            "model_cm": round(float(model_cm), 4),
             "median_cm": round(float(np.median(vals)), 3) if len(vals) else None,
             "max_cm": round(float(vals.max()), 3) if len(vals) else None,
             "worst_at_cm": None if worst is None else [float(xs[worst[1]]), float(ys[worst[0]])],
             "unseen": int(n - seen.sum()), "points": n}
 
 
-def map_check(m: dict) -> dict:
+def map_check(m: dict, has_lens: bool = True) -> dict:
+    """The error map's forecast: warned when its median is over MAP_CM[0] or a point of the
+    area is over MAP_CM[1] (poses there could be off by more than 1 cm), refused when its
+    median is over MAP_CM[1]; warned when the robot's marker is out of view somewhere."""
     if m["median_cm"] is None:
         return check("pose_error_map", "fail", "the robot's marker is out of view everywhere "
                      "on the area", "aim the camera at the area")
-    status = "warn" if m["median_cm"] > FLOOR_RMS_CM[0] else "ok"
+    status = grade(m["median_cm"], MAP_CM)
+    if status == "ok" and m["max_cm"] > MAP_CM[1]:
+        status = "warn"
     text = (f"expected position error over the area: {m['median_cm']:.2f} cm median, "
             f"{m['max_cm']:.2f} cm max (at {m['worst_at_cm'][0]:g}, {m['worst_at_cm'][1]:g})")
+    if m.get("model_cm"):
+        text += f"; {m['model_cm']:.2f} cm of it a smooth misfit of the camera's model"
+    if status == "warn":
+        text += (f" ({MAP_CM[0]:g} cm median or less and {MAP_CM[1]:g} cm or less everywhere "
+                 "expected)")
+    elif status == "fail":
+        text += f" (more than {MAP_CM[1]:g} cm median is refused)"
     if m["unseen"]:
         status = "warn" if status == "ok" else status
         text += (f"; the robot's marker is out of view at {m['unseen']} of {m['points']} points "
                  f"of a {MAP_STEP_CM:g} cm grid")
-    return check("pose_error_map", status, text, "see the error map; move the camera so that it "
-                 "sees the whole area" if m["unseen"] else LENS_ADVICE)
+    advice = ["see the error map"]
+    if m["unseen"]:
+        advice.append("move the camera so that it sees the whole area")
+    if not has_lens or m.get("model_cm"):
+        advice.append(LENS_ADVICE if not has_lens else "the lens does not fit this camera "
+                      "(another camera, zoom, focus or resolution?): calibrate it again")
+    if status != "ok" and not m["unseen"]:
+        advice.append("lay the floor markers within a couple of millimetres of their places")
+    return check("pose_error_map", status, text, "; ".join(advice))
