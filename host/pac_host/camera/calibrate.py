@@ -604,13 +604,7 @@ def floor_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray, pose: 
     pose (6 parameters, fitted on the corners' pixels), carried to the homography; without,
     of the free homography (8, fitted on the floor)."""
     if lens is None:
-        p0 = q._h_params(H)
-
-        def res(p):
-            return (cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), q._h_of(p)).reshape(-1, 2)
-                    - floor).ravel()
-
-        return q.cluster_covariance(q._jacobian(res, p0), res(p0))
+        return q.cluster_covariance(*q.homography_fit(H, ideal, floor))
     K = lens.K
     theta = np.concatenate([cv2.Rodrigues(pose["R"])[0].ravel(), np.ravel(pose["t"])])
     obj = np.column_stack([floor, np.zeros(len(floor))])

@@ -384,26 +384,37 @@ def _jacobian(fun, p: np.ndarray) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def homography_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray,
-                          group: int = 1) -> np.ndarray:
-    """The covariance (8, 8) of the homography's parameters from its fit's residuals. With
-    ``group`` > 1, the points come in groups of as many that err together (a floor marker's
-    corners, when it is laid off its place): the covariance is widened by their design effect
-    (how much more the groups' summed residuals scatter than independent points would)."""
-    p = _h_params(H)
-
+def homography_fit(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The free homography's fit of the floor (``ideal`` image points onto ``floor``, cm):
+    the Jacobian (2n, 8) of its residuals in its 8 parameters and the residuals (2n,)."""
     def res(q):
         return (cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), _h_of(q)).reshape(-1, 2)
                 - floor).ravel()
 
-    J = _jacobian(res, p)
-    r = res(p)
+    p = _h_params(H)
+    return _jacobian(res, p), res(p)
+
+
+def design_effect(r: np.ndarray, group: int) -> float:
+    """How much more the summed residuals (``r``, (2n,)) of groups of ``group`` points that
+    err together (a floor marker's corners) scatter than independent points' would; at least
+    1, and 1 where the points do not come in such groups."""
+    if group <= 1 or len(r) % (2 * group) or not r @ r > 0:
+        return 1.0
+    sums = r.reshape(-1, group, 2).sum(axis=1)
+    return max(float((sums ** 2).sum() / (r @ r)), 1.0)
+
+
+def homography_covariance(H: np.ndarray, ideal: np.ndarray, floor: np.ndarray,
+                          group: int = 1) -> np.ndarray:
+    """The covariance (8, 8) of the homography's parameters from its fit's residuals. With
+    ``group`` > 1, the points come in groups of as many that err together (a floor marker's
+    corners, when it is laid off its place): the covariance is widened by their
+    :func:`design_effect`."""
+    J, r = homography_fit(H, ideal, floor)
     dof = max(len(r) - 8, 1)
-    cov = float(r @ r) / dof * np.linalg.pinv(J.T @ J)
-    if group > 1 and len(r) % (2 * group) == 0 and r @ r > 0:
-        sums = r.reshape(-1, group, 2).sum(axis=1)
-        cov *= max(float((sums ** 2).sum() / (r @ r)), 1.0)
-    return cov
+    return float(r @ r) / dof * np.linalg.pinv(J.T @ J) * design_effect(r, group)
 
 
 def cluster_covariance(J: np.ndarray, r: np.ndarray, group: int = 4) -> np.ndarray:
@@ -420,11 +431,7 @@ def cluster_covariance(J: np.ndarray, r: np.ndarray, group: int = 4) -> np.ndarr
     B = np.linalg.pinv(J.T @ J)
     dof = max(n - p, 1)
     if n % rows or n // rows <= p + 2:
-        cov = float(r @ r) / dof * B
-        if n % rows == 0 and r @ r > 0:
-            sums = r.reshape(-1, group, 2).sum(axis=1)
-            cov *= max(float((sums ** 2).sum() / (r @ r)), 1.0)
-        return cov
+        return float(r @ r) / dof * B * design_effect(r, group)
     g = (J * r[:, None]).reshape(-1, rows, p).sum(axis=1)
     G = len(g)
     return G / (G - 1) * (n - 1) / dof * (B @ (g.T @ g) @ B)
@@ -485,9 +492,7 @@ def smooth_misfit(ideal: np.ndarray, floor: np.ndarray, res: np.ndarray, params:
            "residuals": r.reshape(-1, 2)}
     if dof <= 0 or rss_rich <= 0 or extra <= 0:
         return out
-    sums = r.reshape(-1, group, 2).sum(axis=1) if len(floor) % group == 0 else r.reshape(-1, 2)
-    deff = max(float((sums ** 2).sum()) / rss_rich, 1.0)
-    chance = extra * deff * rss_rich / dof  # what chance takes out, on average
+    chance = extra * design_effect(r, group) * rss_rich / dof  # what chance takes out
     p = float(f_dist.sf((rss - rss_rich) / chance, extra, dof))
     out["p"] = p
     if p < SMOOTH_MISFIT_P:
