@@ -13,11 +13,12 @@ many walks, one that has missed counts as few; before :data:`MIN_TRACK` turn cyc
 walked it counts as one walk at most (less where its population disagrees). A challenger
 replaces the operational turn cycle only when its estimate is higher by more than
 :data:`DECISION_Z` standard errors of the difference; higher but not by that much, the one
-known less well is walked again at the next punctuation, and with no challenger higher but one
-not clearly lower, the operational one until it has :data:`CONFIRM_WALKS` walks
-(:func:`decide`): a turn cycle made operational by its walks is the luckiest of those tested
-until fresh walks say otherwise. Without step noise
-a walk is exact and the rule is the paper's: the higher walk wins.
+known less well is walked again at the next punctuation; with no challenger higher but one
+not clearly lower, the operational one until it has :data:`CONFIRM_WALKS` walks, and then
+again the one known less well (:func:`decide`): a turn cycle made operational by its walks is
+the luckiest of those tested until fresh walks say otherwise, and a race too close to call
+goes on until it is called. Without step noise a walk is exact and the rule is the paper's:
+the higher walk wins.
 
 >>> e = estimate([45], predicted=15.0, walk_sd=10.0, model_sd=0.0)
 >>> round(e.mean, 1), e.walks
@@ -39,7 +40,7 @@ from pac_host.diagnose.noise import Z95
 from pac_host.model.effects import Effect
 from pac_host.model.step_noise import StepNoise
 
-MODEL_WALKS = 128  # noisy walks of the model per candidate: its prediction and a walk's spread
+MODEL_WALKS = 512  # noisy walks of the model per candidate: its prediction and a walk's spread
 MIN_TRACK = 3  # walked turn cycles before the model's track record sets its weight
 # a challenger must beat the operational one by this many standard errors of the difference:
 # with a model that counts as one walk at most (no track record yet), a one-sided 95% margin
@@ -50,7 +51,8 @@ MIN_TRACK = 3  # walked turn cycles before the model's track record sets its wei
 DECISION_Z = 1.645
 TRACKED_Z = 1.0
 # an operational turn cycle is walked again while a challenger is not clearly worse, until it
-# has this many walks: it became operational on walks that beat the others', so its early mean
+# has this many walks (then the two take turns, the one known less well first): it became
+# operational on walks that beat the others', so its early mean
 # is the lucky one, and a walk's fitness is skewed (a sweep of mean 24 walks 32 or more three
 # times in ten): on the noisy shifted robot a run held a sweep of 22 for 20 punctuations on
 # three walks that averaged 28 (docs/explanation/learning.md, "PAL on a noisy robot")
@@ -92,7 +94,7 @@ def estimate(walks: Sequence[float], predicted: float, walk_sd: float, model_sd:
     (their mean, no spread); no walks: the prediction.
 
     >>> round(estimate([30], 20.0, 10.0, 0.0, error_var=1.0).mean, 1)  # a model that has held
-    20.2
+    20.1
     """
     n = len(walks)
     if walk_sd <= 0.0:
@@ -112,33 +114,43 @@ def model_walks(models: np.ndarray, effects: Sequence[Effect], candidates: np.nd
     """For each candidate (C, 9, 2): the model's expected fitness and one walk's standard
     deviation over ``walks`` noisy walks of the model (``models[0]``) with ``noise``, and the
     standard deviation of the noise-free fitness over the model population (its
-    disagreement), each (C,)."""
-    from pac_host.coverage.walks import noisy_walks
+    disagreement), each (C,). The candidates share the walks' noise (common random numbers,
+    the compiled kernel): their predictions differ by their turn cycles, not by their draws."""
+    from pac_host.coverage.noisy import NoisyWalks, draw_normals
 
-    genes = np.repeat(candidates, walks, axis=0)
-    fit = noisy_walks(models[0], genes, budget, effects, noise, rng).fitness
-    fit = fit.astype(np.float64).reshape(len(candidates), walks)
+    if noise.is_zero():  # every walk the same: one is all of them
+        walks = 2
+    z = draw_normals(rng, walks, budget)
+    fit = NoisyWalks(models[0], noise, z, budget, effects).figures(candidates)[2]
+    fit = fit.astype(np.float64)
     spread = simulate(models, candidates, budget, effects).fitness.astype(np.float64)
     return fit.mean(axis=1), fit.std(axis=1, ddof=1), spread.std(axis=0)
 
 
 def model_error_var(walks: dict[str, Sequence[float]], predicted: dict[str, float],
-                    walk_sd: dict[str, float]) -> float | None:
+                    walk_sd: dict[str, float], leave_out: str | None = None) -> float | None:
     """The variance of the model's prediction error from its track record: over every walked
     turn cycle it predicts, the squared gap between its walks' mean and the prediction less
     what the walks' spread alone gives (``walk_sd^2 / n`` and the prediction's Monte Carlo
     error), averaged (an unbiased estimate of the error's variance), at least 0; None with
-    fewer than :data:`MIN_TRACK` such turn cycles.
+    fewer than :data:`MIN_TRACK` such turn cycles. ``leave_out``: the record without that turn
+    cycle, for weighing the model's prediction of it: its own walks are already the evidence
+    against the prediction, and counted again in the model's error a run of luck would make
+    the model that predicted it rightly count for less (cross-validated empirical Bayes).
 
     >>> model_error_var({"a": [20, 22], "b": [30], "c": [10]},
     ...                 {"a": 21.0, "b": 30.0, "c": 10.0}, {"a": 2.0, "b": 2.0, "c": 2.0})
     0.0
     >>> model_error_var({"a": [20]}, {"a": 10.0}, {"a": 2.0}) is None
     True
+    >>> model_error_var({"a": [20], "b": [30], "c": [10], "lucky": [40]},
+    ...                 {"a": 20.0, "b": 30.0, "c": 10.0, "lucky": 20.0},
+    ...                 dict.fromkeys("abc", 2.0) | {"lucky": 2.0}, leave_out="lucky")
+    0.0
     """
     terms = [(float(np.mean(w)) - predicted[k]) ** 2
              - walk_sd[k] ** 2 * (1.0 / len(w) + 1.0 / MODEL_WALKS)
-             for k, w in walks.items() if len(w) and k in predicted]
+             for k, w in walks.items() if len(w) and k in predicted and k != leave_out]
     if len(terms) < MIN_TRACK:
         return None
     return max(0.0, float(np.mean(terms)))
@@ -172,13 +184,17 @@ def decide(operational: str | None, estimates: dict[str, Estimate],
     higher by more than ``z`` standard errors of the difference (:data:`DECISION_Z`, or
     :data:`TRACKED_Z` once the model's weight comes from its track record); higher by less,
     the one of the two with the larger standard error is walked again; lower by less, the
-    operational one, while it has fewer than :data:`CONFIRM_WALKS` walks.
+    operational one while it has fewer than :data:`CONFIRM_WALKS` walks, and after that again
+    the one with the larger standard error: with a cap on its walks, a lucky run of walks
+    would keep a worse operational turn cycle for good.
 
     >>> est = {"a": Estimate(15.0, 1.0, 6), "b": Estimate(20.0, 6.0, 1)}
     >>> decide("a", est, ["b"]), decide("a", {**est, "b": Estimate(25.0, 2.0, 3)}, ["b"])
     ((None, 'b'), ('b', None))
     >>> decide("a", {"a": Estimate(26.0, 2.0, 3), "b": Estimate(25.0, 2.0, 2)}, ["b"])
     (None, 'a')
+    >>> decide("a", {"a": Estimate(26.0, 2.0, 9), "b": Estimate(25.0, 2.5, 4)}, ["b"])
+    (None, 'b')
     """
     others = [c for c in challengers if c != operational]
     if not others:
@@ -190,8 +206,10 @@ def decide(operational: str | None, estimates: dict[str, Estimate],
     gap = c.mean - o.mean
     if gap > z * math.hypot(o.sd, c.sd):
         return best, None
-    if gap > 0:
-        return None, best if c.sd > o.sd else operational
-    if gap > -z * math.hypot(o.sd, c.sd) and o.walks < CONFIRM_WALKS:
+    if gap <= -z * math.hypot(o.sd, c.sd):
+        return None, None
+    if gap <= 0 and o.walks < CONFIRM_WALKS:
         return None, operational
-    return None, None
+    # too close to call: the one known less well is walked again, however many walks the
+    # operational one has (capped, a lucky run of walks would hold it for good)
+    return None, best if c.sd > o.sd else operational

@@ -332,15 +332,19 @@ def _by_evidence(state: PALState, tests: np.ndarray, results: list[TestResult],
         np.random.default_rng(rng.integers(2**63)))
     sds = {k: operational_rule.pooled_sd(float(s), walks.get(k, ()))
            for k, s in zip(names, walk_sd, strict=True)}
-    error_var = operational_rule.model_error_var(
-        walks, {k: float(m) for k, m in zip(names, mean, strict=True)}, sds)
-    estimates = {}
-    for k, m, d in list(zip(names, mean, model_sd, strict=True))[:decided]:
-        estimates[k] = operational_rule.estimate(walks.get(k, ()), float(m), sds[k], float(d),
-                                                 error_var)
+    predicted = {k: float(m) for k, m in zip(names, mean, strict=True)}
+    error_var = operational_rule.model_error_var(walks, predicted, sds)
+    # the model's error for each candidate from the other turn cycles' record: its own walks
+    # are the evidence against its prediction once, not twice
+    own = {k: operational_rule.model_error_var(walks, predicted, sds, leave_out=k)
+           for k in names[:decided]}
+    estimates = {k: operational_rule.estimate(walks.get(k, ()), float(m), sds[k], float(d),
+                                              own[k])
+                 for k, m, d in list(zip(names, mean, model_sd, strict=True))[:decided]}
+    tracked = all(v is not None for v in own.values())
     chosen, again = operational_rule.decide(
         op_key, estimates, keys,
-        operational_rule.DECISION_Z if error_var is None else operational_rule.TRACKED_Z)
+        operational_rule.TRACKED_Z if tracked else operational_rule.DECISION_Z)
     repeat = None
     if again is not None:
         repeat = state.operational if again == op_key else tests[keys.index(again)].copy()
