@@ -611,8 +611,8 @@ def best_known_on(actual: GaitTable, cfg: ExperimentConfig, optimum: float) -> d
         value = (compared_on_robot(actual, parse_turn_cycle(r["turn_cycle"]), cfg,
                                    STAGE_CONFIRMED)["mean"] if noisy else r["fitness"])
         what = (f"the best known on the built-in robot {name} with step noise "
-                f"{r['step_noise']} (recorded {r['mean']} over {r['walks']} walks, "
-                f"{value} over {OBSERVED_WALKS} fresh walks)" if noisy
+                f"{r['step_noise']}, measured again over {OBSERVED_WALKS} fresh walks "
+                f"(recorded {r['mean']} over {r['walks']})" if noisy
                 else f"the best known on the built-in robot {name}")
         found.append((value, "built-in",
                       f"{what} ({r['turn_cycle']}; pac_host/model/best_known.json)"))
