@@ -118,8 +118,6 @@ def model_walks(models: np.ndarray, effects: Sequence[Effect], candidates: np.nd
     the compiled kernel): their predictions differ by their turn cycles, not by their draws."""
     from pac_host.coverage.noisy import NoisyWalks, draw_normals
 
-    if noise.is_zero():  # every walk the same: one is all of them
-        walks = 2
     z = draw_normals(rng, walks, budget)
     fit = NoisyWalks(models[0], noise, z, budget, effects).figures(candidates)[2]
     fit = fit.astype(np.float64)
@@ -145,7 +143,7 @@ def model_error_var(walks: dict[str, Sequence[float]], predicted: dict[str, floa
     True
     >>> model_error_var({"a": [20], "b": [30], "c": [10], "lucky": [40]},
     ...                 {"a": 20.0, "b": 30.0, "c": 10.0, "lucky": 20.0},
-    ...                 dict.fromkeys("abc", 2.0) | {"lucky": 2.0}, leave_out="lucky")
+    ...                 dict.fromkeys(["a", "b", "c", "lucky"], 2.0), leave_out="lucky")
     0.0
     """
     terms = [(float(np.mean(w)) - predicted[k]) ** 2
@@ -210,6 +208,5 @@ def decide(operational: str | None, estimates: dict[str, Estimate],
         return None, None
     if gap <= 0 and o.walks < CONFIRM_WALKS:
         return None, operational
-    # too close to call: the one known less well is walked again, however many walks the
-    # operational one has (capped, a lucky run of walks would hold it for good)
+    # too close to call: the one known less well, however many walks the operational one has
     return None, best if c.sd > o.sd else operational
